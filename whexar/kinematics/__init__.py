@@ -1,0 +1,1 @@
+"""WHexaR kinematics: pure numpy, SI units, vectorised over legs and points."""
