@@ -1,0 +1,815 @@
+"""Robot configuration: pydantic models of everything physical or tunable.
+
+Every default is a value of the reference thesis (Žák 2023, *Biology-Inspired
+Control of a Walking Robot*), so ``RobotConfig()`` *is* WHexaR; the file
+``config/whexar.toml`` spells the same values out, key by key, with sources.
+
+Unit rule: the file names every unit in its keys (``_mm``, ``_deg``, ``_g``,
+``_us``, ``_hz``, ``_counts``…); code converts to SI once, at the edge (see the
+``*_m`` / ``*_rad`` properties and :mod:`whexar.kinematics.geometry`).
+
+Validation runs in two layers, so that one bad key never hides another:
+
+1. per key — types, ranges, allowed values, unknown keys (pydantic);
+2. relations — servo IDs unique, limits ordered, DH lengths consistent with
+   segment lengths, gait thresholds ordered along the gait ranking, stance
+   presets reachable. Checks inside one section run whenever that section is
+   valid on its own; checks across sections run once every section is.
+
+:func:`load_config` raises :class:`~whexar.errors.ConfigError` listing every
+:class:`~whexar.errors.Problem` found (key path, bad value, what is allowed).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import tomllib
+import types
+import typing
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Annotated, Any, Final, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    TypeAdapter,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+
+from whexar.errors import MISSING, ConfigError, Problem
+from whexar.robot import JOINT_NAMES, LEG_NAMES, POSITIONING_JOINTS, servo_id
+
+ServoModelName = Literal["MX-28", "MX-64", "MX-106"]
+
+DH_SEGMENT_TOLERANCE_MM: Final = 5.0
+"""How far a DH length may differ from the measured segment length of Table 5.2.
+
+The thesis itself differs by 2 mm: trochanter offset d₁ = 65 mm in the DH
+table (Table 5.3) against 63 mm measured (Table 5.2). Table 6.5 is reproduced
+only with 65 mm, so the DH value drives the kinematics and the check allows
+a few millimetres of measuring slack, not a different leg.
+"""
+
+SERVO_ID_RANGE: Final = (0, 252)
+"""IDs a Dynamixel (Protocol 2.0) accepts; 253–255 are reserved (ROBOTIS e-manual)."""
+
+BUS_BAUDRATES: Final = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
+"""MX (2.0) baud rates that dynamixel-sdk's ``setBaudRate`` accepts (4.5 Mbps it does not)."""
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+AdcCounts = Annotated[int, Field(ge=0, le=1023)]
+"""A 10-bit ATmega2560 ADC reading."""
+
+
+class _Section(BaseModel):
+    """Base of every configuration model: strict keys, immutable values."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    def problems(self, at: str) -> list[Problem]:
+        """Relational problems inside this section; ``at`` is its key path."""
+        return []
+
+
+# --------------------------------------------------------------------------- robot & body
+
+
+class RobotSpec(_Section):
+    """Whole-robot constants."""
+
+    name: str = "WHexaR"
+    mass_kg: Positive = 8.8
+    """Total mass used for the cost of transport (6.8.1)."""
+    supply_voltage_v: Positive = 12.0
+    """Supply voltage in the experiments (5.3.1, 6.8)."""
+    gravity_m_s2: Positive = 9.81
+    """Gravitational acceleration used by the thesis (6.8.1)."""
+
+
+class BodySpec(_Section):
+    """The body tube: an aluminium rectangular profile 60 × 10 × 6 cm (5.2)."""
+
+    length_mm: Positive = 600.0
+    width_mm: Positive = 100.0
+    height_mm: Positive = 60.0
+
+
+# --------------------------------------------------------------------------- servos & joints
+
+
+class ServoModelSpec(_Section):
+    """One Dynamixel MX model (Table 5.1; ROBOTIS e-manual, MX (2.0) pages)."""
+
+    model_number: int = Field(ge=0, le=65535)
+    """Value of the Model Number register (address 0) under Protocol 2.0."""
+    mass_g: Positive
+    stall_torque_nm: Positive
+    """Stall torque at 12 V (Table 5.1)."""
+    stall_current_a: Positive
+    """Current at stall torque, 12 V (5.3.1)."""
+    resolution_ticks: int = Field(default=4096, gt=0)
+    """Encoder ticks per revolution (Table 5.1)."""
+
+
+def _default_servo_models() -> dict[ServoModelName, ServoModelSpec]:
+    return {
+        "MX-28": ServoModelSpec(
+            model_number=30, mass_g=77.0, stall_torque_nm=2.5, stall_current_a=1.4
+        ),
+        "MX-64": ServoModelSpec(
+            model_number=311, mass_g=135.0, stall_torque_nm=6.0, stall_current_a=4.1
+        ),
+        "MX-106": ServoModelSpec(
+            model_number=321, mass_g=153.0, stall_torque_nm=8.4, stall_current_a=5.2
+        ),
+    }
+
+
+class JointSpec(_Section):
+    """One joint of every leg: its servo, range and segment (Table 5.2)."""
+
+    model: ServoModelName
+    min_deg: Finite | None = None
+    """Lower limit; absent only for an endless joint."""
+    max_deg: Finite | None = None
+    """Upper limit; absent only for an endless joint."""
+    endless: bool = False
+    """Continuous rotation (the wheel), no limits."""
+    length_mm: NonNegative
+    """Distance to the next joint, or to the ground for the wheel (Table 5.2)."""
+
+    @property
+    def limits_rad(self) -> tuple[float, float] | None:
+        """(min, max) in radians, or ``None`` for an endless joint."""
+        if self.endless or self.min_deg is None or self.max_deg is None:
+            return None
+        return math.radians(self.min_deg), math.radians(self.max_deg)
+
+    def problems(self, at: str) -> list[Problem]:
+        found: list[Problem] = []
+        if self.endless:
+            for key in ("min_deg", "max_deg"):
+                if getattr(self, key) is not None:
+                    found.append(
+                        Problem(f"{at}.{key}", getattr(self, key), "an endless joint has no limits")
+                    )
+            return found
+        for key in ("min_deg", "max_deg"):
+            if getattr(self, key) is None:
+                found.append(Problem(f"{at}.{key}", MISSING, "required unless endless = true"))
+        if self.min_deg is not None and self.max_deg is not None and self.min_deg >= self.max_deg:
+            found.append(
+                Problem(
+                    f"{at}.min_deg",
+                    self.min_deg,
+                    f"must be below max_deg ({self.max_deg:g}); limits are (min, max)",
+                )
+            )
+        return found
+
+
+class JointsSpec(_Section):
+    """The seven joints, coxa to wheel (Fig. 4.1, Table 5.2)."""
+
+    coxa: JointSpec = JointSpec(model="MX-64", min_deg=-135, max_deg=135, length_mm=0)
+    trochanter: JointSpec = JointSpec(model="MX-106", min_deg=-360, max_deg=360, length_mm=63)
+    femur: JointSpec = JointSpec(model="MX-106", min_deg=-120, max_deg=120, length_mm=127)
+    tibia: JointSpec = JointSpec(model="MX-64", min_deg=-150, max_deg=150, length_mm=124)
+    tarsus: JointSpec = JointSpec(model="MX-64", min_deg=-155, max_deg=170, length_mm=95)
+    direction: JointSpec = JointSpec(model="MX-28", min_deg=-360, max_deg=360, length_mm=42)
+    wheel: JointSpec = JointSpec(model="MX-28", endless=True, length_mm=33)
+
+    def by_name(self, name: str) -> JointSpec:
+        """The joint called ``name`` (one of :data:`whexar.robot.JOINT_NAMES`)."""
+        spec: JointSpec = getattr(self, name)
+        return spec
+
+    def problems(self, at: str) -> list[Problem]:
+        return [p for name in JOINT_NAMES for p in self.by_name(name).problems(f"{at}.{name}")]
+
+
+class DHRow(_Section):
+    """One row of the Denavit–Hartenberg table (eq. 4.4–4.5, Table 5.3).
+
+    The DH angle of the joint is ``theta_sign · q + theta_offset`` where q is
+    the joint angle in the servo convention of Table 6.5 (positive femur lifts
+    the leg; the tarsus keeps the last segment vertical at −90° − femur − tibia).
+    """
+
+    d_mm: Finite
+    a_mm: Finite
+    alpha_deg: Finite
+    theta_offset_deg: Finite = 0.0
+    theta_sign: Literal[1, -1] = 1
+
+
+class DHSpec(_Section):
+    """DH table of the five positioning joints (Table 5.3).
+
+    Table 5.3 gives d, a, α and the trochanter's +π/2. The femur's +90° and the
+    sign flips of femur, tibia and tarsus map Table 6.5's joint convention onto
+    these DH angles: with them FK reproduces every row of Table 6.5.
+    """
+
+    coxa: DHRow = DHRow(d_mm=0, a_mm=0, alpha_deg=90)
+    trochanter: DHRow = DHRow(d_mm=65, a_mm=0, alpha_deg=90, theta_offset_deg=90)
+    femur: DHRow = DHRow(d_mm=0, a_mm=127, alpha_deg=0, theta_offset_deg=90, theta_sign=-1)
+    tibia: DHRow = DHRow(d_mm=0, a_mm=124, alpha_deg=0, theta_sign=-1)
+    tarsus: DHRow = DHRow(d_mm=0, a_mm=95, alpha_deg=0, theta_sign=-1)
+
+    def rows(self) -> tuple[DHRow, ...]:
+        """The five rows in joint order."""
+        return tuple(getattr(self, name) for name in POSITIONING_JOINTS)
+
+
+# --------------------------------------------------------------------------- legs
+
+
+def _default_legs() -> tuple[LegSpec, ...]:
+    # Coxa joints 300 mm apart along the body (5.2) and 74 mm from its axis
+    # (Table 5.2, "Body 74 mm"); body frame x forward, y left, z up.
+    xs = {"F": 300.0, "M": 0.0, "R": -300.0}
+    return tuple(
+        LegSpec(
+            name=name,
+            mount_mm=(xs[name[1]], -74.0 if name[0] == "R" else 74.0, 0.0),
+            servo_ids=tuple(servo_id(name, joint) for joint in JOINT_NAMES),
+        )
+        for name in LEG_NAMES
+    )
+
+
+class LegSpec(_Section):
+    """One leg: where its coxa sits on the body and which servo drives each joint."""
+
+    name: Literal["RF", "LF", "RM", "LM", "RR", "LR"]
+    mount_mm: tuple[Finite, Finite, Finite]
+    """Coxa joint in the body frame (x forward, y left, z up)."""
+    servo_ids: tuple[int, int, int, int, int, int, int]
+    """Servo ID of each joint, coxa to wheel; default i = 7l + j + 1 (eq. 4.1)."""
+
+    def problems(self, at: str) -> list[Problem]:
+        found: list[Problem] = []
+        lo, hi = SERVO_ID_RANGE
+        for j, sid in enumerate(self.servo_ids):
+            if not lo <= sid <= hi:
+                found.append(
+                    Problem(
+                        f"{at}.servo_ids[{j}]",
+                        sid,
+                        f"a Dynamixel ID in {lo}–{hi} ({JOINT_NAMES[j]} of {self.name})",
+                    )
+                )
+        y = self.mount_mm[1]
+        if (self.name[0] == "R" and y >= 0) or (self.name[0] == "L" and y <= 0):
+            side = "right (y < 0)" if self.name[0] == "R" else "left (y > 0)"
+            found.append(
+                Problem(f"{at}.mount_mm[1]", y, f"{self.name} is a {side} leg in the body frame")
+            )
+        return found
+
+
+def _check_legs(legs: Sequence[LegSpec], at: str) -> list[Problem]:
+    found: list[Problem] = []
+    names = tuple(leg.name for leg in legs)
+    if names != LEG_NAMES:
+        found.append(
+            Problem(at, list(names), f"exactly six legs in the order {', '.join(LEG_NAMES)}")
+        )
+    seen: dict[int, str] = {}
+    for i, leg in enumerate(legs):
+        found.extend(leg.problems(f"{at}[{i}]"))
+        for j, sid in enumerate(leg.servo_ids):
+            here = f"{at}[{i}].servo_ids[{j}]"
+            if sid in seen:
+                found.append(
+                    Problem(
+                        here,
+                        sid,
+                        f"servo IDs must be unique; {sid} is already used by {seen[sid]}",
+                    )
+                )
+            else:
+                seen[sid] = f"{here} ({leg.name} {JOINT_NAMES[j]})"
+    return found
+
+
+# --------------------------------------------------------------------------- links
+
+
+class BusSpec(_Section):
+    """The Dynamixel bus behind the U2D2 adapter (5.3.6, 6.1.1)."""
+
+    port: str = Field(default="/dev/ttyUSB0", min_length=1)
+    protocol: float = 2.0
+    """Dynamixel protocol; the MX servos run the MX (2.0) firmware (5.3.6)."""
+    baudrate: Literal[9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000] = 1_000_000
+    """1 Mbps: the fastest rate at which the thesis's bus ran without errors (6.1.1)."""
+    return_delay_time_us: int = Field(default=20, ge=0, le=508, multiple_of=2)
+    """Return Delay Time; the register counts 2 µs units (thesis used 20 µs, 5.3.6)."""
+
+    @field_validator("protocol")
+    @classmethod
+    def _protocol_2(cls, value: float) -> float:
+        if value != 2.0:
+            raise ValueError("2.0: whexar speaks Dynamixel Protocol 2.0 only (MX (2.0) firmware)")
+        return value
+
+
+class SensorBoardSpec(_Section):
+    """The ATmega2560 sensor board on its serial line (5.4, 6.1.2, 6.1.5)."""
+
+    port: str = Field(default="/dev/ttyACM0", min_length=1)
+    baudrate: int = Field(default=1_000_000, gt=0)
+    """1 Mbps with U2X on the 16 MHz board (5.4)."""
+    sample_rate_hz: Positive = 50.0
+    """ADC sampling of the IR and FSR inputs (6.1.2, 6.1.5)."""
+    frame_rate_hz: float = Field(default=20.0, ge=10.0, le=50.0, allow_inf_nan=False)
+    """Frames sent to the host: 20 Hz in 5.4 (10 Hz in 6.1.5)."""
+
+    def problems(self, at: str) -> list[Problem]:
+        if self.frame_rate_hz > self.sample_rate_hz:
+            return [
+                Problem(
+                    f"{at}.frame_rate_hz",
+                    self.frame_rate_hz,
+                    f"at most sample_rate_hz ({self.sample_rate_hz:g}): "
+                    "a frame carries at least one new sample",
+                )
+            ]
+        return []
+
+
+class IRSpec(_Section):
+    """IR rangefinders on the front legs, calibrated by eq. 5.5 (5.3.5, Table 5.4)."""
+
+    k_cm: Positive = 149_630.2188732250
+    """Coefficient of the trend line y[cm] = k·x^e, x the 10-bit ADC value (eq. 5.5)."""
+    exponent: Finite = -1.4841404565
+    """Exponent e of eq. 5.5."""
+    min_distance_mm: Positive = 100.0
+    """Nearest calibrated distance (Table 5.4: 10 cm)."""
+    max_distance_mm: Positive = 1500.0
+    """Detection range: up to 150 cm (5.3.5)."""
+
+    def problems(self, at: str) -> list[Problem]:
+        found: list[Problem] = []
+        if self.exponent >= 0:
+            found.append(
+                Problem(f"{at}.exponent", self.exponent, "negative: distance falls as counts rise")
+            )
+        if self.min_distance_mm >= self.max_distance_mm:
+            found.append(
+                Problem(
+                    f"{at}.min_distance_mm",
+                    self.min_distance_mm,
+                    f"below max_distance_mm ({self.max_distance_mm:g})",
+                )
+            )
+        return found
+
+
+class FSRSpec(_Section):
+    """Force-sensitive resistors under each leg, read as raw ADC counts (5.3.3).
+
+    The thesis sets the threshold from each leg's load after calibration
+    (6.7.3) and gives no number; these defaults suit the 10 kΩ divider of
+    Fig. 5.7 and are meant to be tuned on the robot. Two thresholds give
+    hysteresis so a contact flag does not chatter.
+    """
+
+    contact_on_counts: AdcCounts = 200
+    """A reading at or above this sets the leg's contact flag."""
+    contact_off_counts: AdcCounts = 120
+    """A reading below this clears it."""
+
+    def problems(self, at: str) -> list[Problem]:
+        if self.contact_off_counts >= self.contact_on_counts:
+            return [
+                Problem(
+                    f"{at}.contact_off_counts",
+                    self.contact_off_counts,
+                    f"below contact_on_counts ({self.contact_on_counts}) for hysteresis",
+                )
+            ]
+        return []
+
+
+# --------------------------------------------------------------------------- gait selection
+
+
+GAIT_RANKING: Final = ("wheels", "tripod", "tetrapod", "ripple", "wave")
+"""Locomotion modes from flat-terrain to difficult-terrain (5.4, Table 5.9)."""
+
+
+class GaitThresholds(_Section):
+    """Limits of one locomotion mode; beyond any of them a more stable mode is chosen.
+
+    An absent ``max_obstacles`` or ``max_bumps`` means no limit (Table 5.9 "> 0",
+    "> 10": walking gaits accept any count).
+    """
+
+    max_step_height_mm: NonNegative
+    max_tilt_deg: float = Field(gt=0, le=90, allow_inf_nan=False)
+    """Body tilt (roll or pitch) tolerated, symmetric about level."""
+    max_obstacles: int | None = Field(default=None, ge=0)
+    max_bumps: int | None = Field(default=None, ge=0)
+    """IMU bumps counted by the terrain controller (4.2.3)."""
+    max_lost_supports: int = Field(ge=0)
+    """Disappeared leg supports within the window (4.2.3, 6.7.5)."""
+
+
+class GaitSelectorSpec(_Section):
+    """Gait-selector thresholds: Table 5.9, wheel tilt raised from 7° to 20° (6.7.5)."""
+
+    lost_support_window_cycles: Positive = 1.0
+    """Disappeared supports are counted over a floating window of one gait cycle (6.7.5)."""
+    wheels: GaitThresholds = GaitThresholds(
+        max_step_height_mm=0, max_tilt_deg=20, max_obstacles=0, max_bumps=10, max_lost_supports=3
+    )
+    tripod: GaitThresholds = GaitThresholds(
+        max_step_height_mm=100, max_tilt_deg=20, max_lost_supports=3
+    )
+    tetrapod: GaitThresholds = GaitThresholds(
+        max_step_height_mm=120, max_tilt_deg=25, max_lost_supports=4
+    )
+    ripple: GaitThresholds = GaitThresholds(
+        max_step_height_mm=220, max_tilt_deg=30, max_lost_supports=5
+    )
+    wave: GaitThresholds = GaitThresholds(
+        max_step_height_mm=350, max_tilt_deg=30, max_lost_supports=5
+    )
+
+    def ranked(self) -> tuple[tuple[str, GaitThresholds], ...]:
+        """(mode, thresholds) from wheels to wave."""
+        return tuple((name, getattr(self, name)) for name in GAIT_RANKING)
+
+    def problems(self, at: str) -> list[Problem]:
+        # A more stable mode must tolerate at least what a less stable one does,
+        # or the selector could escalate into a mode that rejects the terrain.
+        found: list[Problem] = []
+        keys = (
+            "max_step_height_mm",
+            "max_tilt_deg",
+            "max_obstacles",
+            "max_bumps",
+            "max_lost_supports",
+        )
+        ranked = self.ranked()
+        for key in keys:
+            for (lo_name, lo), (hi_name, hi) in itertools.pairwise(ranked):
+                a, b = getattr(lo, key), getattr(hi, key)
+                a_val = math.inf if a is None else a
+                b_val = math.inf if b is None else b
+                if b_val < a_val:
+                    shown = "no limit" if a is None else f"{a:g}"
+                    found.append(
+                        Problem(
+                            f"{at}.{hi_name}.{key}",
+                            b,
+                            f"at least {lo_name}'s {shown}: thresholds may not fall along "
+                            f"the ranking {' < '.join(GAIT_RANKING)}",
+                        )
+                    )
+        return found
+
+
+# --------------------------------------------------------------------------- stances
+
+
+class StanceSpec(_Section):
+    """A standing posture, the same for all legs up to the front/rear yaw (6.3, 6.4).
+
+    ``reach_mm`` is the horizontal distance from the coxa joint to the wheel's
+    contact point, ``height_mm`` the height of the coxa joints above the ground,
+    ``front_rear_yaw_deg`` how far front legs turn forward and rear legs
+    backward (6.4: 25° stopped the tripod gait from tipping backwards).
+    """
+
+    reach_mm: Positive
+    height_mm: Positive
+    front_rear_yaw_deg: float = Field(default=0.0, ge=-90, le=90, allow_inf_nan=False)
+    description: str = ""
+
+
+def _default_stances() -> dict[str, StanceSpec]:
+    # Fig. 6.1 shows the stances without joint values; reach and height are
+    # chosen to match its captions and Table 6.5 (row 1: tarsus at x = 190,
+    # y = 120 mm, i.e. contact 120 + 170 mm below the coxa).
+    return {
+        "default": StanceSpec(
+            reach_mm=190,
+            height_mm=290,
+            front_rear_yaw_deg=25,
+            description="walking stance of 6.4: Table 6.5 row 1, front/rear legs turned 25 deg",
+        ),
+        "basic": StanceSpec(
+            reach_mm=190,
+            height_mm=290,
+            description="Table 6.5 row 1 on every leg (Fig. 6.1 b)",
+        ),
+        "high": StanceSpec(
+            reach_mm=160,
+            height_mm=380,
+            front_rear_yaw_deg=25,
+            description="highest stance, for stepping over high obstacles (Fig. 6.1 a)",
+        ),
+        "low": StanceSpec(
+            reach_mm=240,
+            height_mm=200,
+            front_rear_yaw_deg=25,
+            description="20 cm stance for crawling under low obstacles (Fig. 6.1 c)",
+        ),
+        "narrow": StanceSpec(
+            reach_mm=140,
+            height_mm=290,
+            description="shortest stance (Fig. 6.1 e)",
+        ),
+    }
+
+
+# --------------------------------------------------------------------------- the whole robot
+
+
+class RobotConfig(_Section):
+    """Everything physical or tunable about WHexaR. ``RobotConfig()`` is the thesis robot."""
+
+    schema_version: Literal[1] = 1
+    robot: RobotSpec = RobotSpec()
+    body: BodySpec = BodySpec()
+    servo_models: dict[ServoModelName, ServoModelSpec] = Field(
+        default_factory=_default_servo_models
+    )
+    joints: JointsSpec = JointsSpec()
+    dh: DHSpec = DHSpec()
+    legs: tuple[LegSpec, ...] = Field(default_factory=_default_legs)
+    bus: BusSpec = BusSpec()
+    sensor_board: SensorBoardSpec = SensorBoardSpec()
+    ir: IRSpec = IRSpec()
+    fsr: FSRSpec = FSRSpec()
+    gait_selector: GaitSelectorSpec = GaitSelectorSpec()
+    stances: dict[str, StanceSpec] = Field(default_factory=_default_stances)
+
+    @model_validator(mode="after")
+    def _relations(self, info: ValidationInfo) -> RobotConfig:
+        # load_config() collects relational problems itself, section by
+        # section; code that builds a RobotConfig directly is checked here.
+        if isinstance(info.context, dict) and info.context.get("defer_relations"):
+            return self
+        found = self.problems("")
+        if found:
+            raise ValueError("; ".join(str(p) for p in found))
+        return self
+
+    def problems(self, at: str = "") -> list[Problem]:
+        """Every relational problem of the whole configuration."""
+        found: list[Problem] = []
+        for name in type(self).model_fields:
+            found.extend(_section_problems(name, getattr(self, name)))
+        for check in _CROSS_CHECKS:
+            found.extend(check(self))
+        return found
+
+    def leg(self, leg: int | str) -> LegSpec:
+        """The leg given by index or name."""
+        from whexar.robot import leg_index
+
+        return self.legs[leg_index(leg)]
+
+    def stance(self, name: str) -> StanceSpec:
+        """The stance preset called ``name``; a ConfigError names the known ones."""
+        try:
+            return self.stances[name]
+        except KeyError:
+            allowed = ", ".join(sorted(self.stances))
+            raise ConfigError("stances", [Problem("stances", name, f"one of {allowed}")]) from None
+
+
+def _section_problems(name: str, value: object) -> list[Problem]:
+    """Relational problems inside one top-level section."""
+    if name == "legs":
+        return _check_legs(typing.cast(Sequence[LegSpec], value), name)
+    if isinstance(value, _Section):
+        return value.problems(name)
+    if isinstance(value, Mapping):
+        return [
+            p
+            for key, item in value.items()
+            if isinstance(item, _Section)
+            for p in item.problems(f"{name}.{_key(key)}")
+        ]
+    return []
+
+
+def _check_dh_lengths(cfg: RobotConfig) -> list[Problem]:
+    # Each DH length against the measured segment it stands for (Tables 5.2–5.3).
+    pairs = (
+        ("trochanter", "d_mm"),
+        ("femur", "a_mm"),
+        ("tibia", "a_mm"),
+        ("tarsus", "a_mm"),
+    )
+    found: list[Problem] = []
+    for joint, key in pairs:
+        value = getattr(getattr(cfg.dh, joint), key)
+        segment = cfg.joints.by_name(joint).length_mm
+        if abs(value - segment) > DH_SEGMENT_TOLERANCE_MM:
+            found.append(
+                Problem(
+                    f"dh.{joint}.{key}",
+                    value,
+                    f"within {DH_SEGMENT_TOLERANCE_MM:g} mm of joints.{joint}.length_mm "
+                    f"({segment:g} mm, the measured segment)",
+                )
+            )
+    return found
+
+
+def _check_servo_models(cfg: RobotConfig) -> list[Problem]:
+    return [
+        Problem(f"joints.{name}.model", cfg.joints.by_name(name).model, msg)
+        for name in JOINT_NAMES
+        if cfg.joints.by_name(name).model not in cfg.servo_models
+        for msg in [f"a model described under servo_models ({', '.join(cfg.servo_models)})"]
+    ]
+
+
+def _check_stances(cfg: RobotConfig) -> list[Problem]:
+    # Each preset must be reachable by every leg within the joint limits, or
+    # the robot could be commanded into a posture it cannot take.
+    from whexar.errors import KinematicsError
+    from whexar.kinematics.body import stance_feet
+    from whexar.kinematics.geometry import LegGeometry
+    from whexar.kinematics.leg import ik
+
+    if _check_servo_models(cfg) or cfg.joints.problems("joints") or cfg.dh.problems("dh"):
+        return []
+    geometry = LegGeometry.from_config(cfg)
+    found: list[Problem] = []
+    for name, stance in cfg.stances.items():
+        try:
+            ik(stance_feet(stance, geometry), geometry, target="contact")
+        except KinematicsError as exc:
+            found.append(
+                Problem(
+                    f"stances.{_key(name)}",
+                    {"reach_mm": stance.reach_mm, "height_mm": stance.height_mm},
+                    f"a stance every leg can reach within its joint limits ({exc})",
+                )
+            )
+    return found
+
+
+_CROSS_CHECKS: Final[tuple[Callable[[RobotConfig], list[Problem]], ...]] = (
+    _check_dh_lengths,
+    _check_servo_models,
+    _check_stances,
+)
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def _key(part: object) -> str:
+    """One component of a key path, quoted as TOML would need it."""
+    if isinstance(part, int):
+        return f"[{part}]"
+    text = str(part)
+    return text if re.fullmatch(r"[A-Za-z0-9_]+", text) else f'"{text}"'
+
+
+def format_path(loc: Sequence[object]) -> str:
+    """``("legs", 1, "servo_ids", 0)`` → ``legs[1].servo_ids[0]``."""
+    out = ""
+    for part in loc:
+        piece = _key(part)
+        out += piece if piece.startswith("[") or not out else f".{piece}"
+    return out
+
+
+def _model_at(loc: Sequence[object]) -> type[BaseModel] | None:
+    """The model class that a location inside a RobotConfig document points into."""
+    annotation: object = RobotConfig
+    for part in loc:
+        annotation = _unwrap(annotation)
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            field = annotation.model_fields.get(str(part))
+            if field is None:
+                return None
+            annotation = field.annotation
+        else:
+            args = typing.get_args(annotation)
+            if not args:
+                return None
+            annotation = args[-1] if typing.get_origin(annotation) is dict else args[0]
+    annotation = _unwrap(annotation)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    return None
+
+
+def _unwrap(annotation: object) -> object:
+    """Strip ``Optional``/``Annotated`` so a field's model class shows through."""
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _unwrap(typing.get_args(annotation)[0])
+    if origin in (typing.Union, types.UnionType):
+        members = [a for a in typing.get_args(annotation) if a is not type(None)]
+        return _unwrap(members[0]) if len(members) == 1 else annotation
+    return annotation
+
+
+def _problem_from_error(error: Mapping[str, Any]) -> Problem:
+    loc = tuple(error["loc"])
+    path = format_path(loc)
+    kind = error["type"]
+    if kind == "missing":
+        return Problem(path, MISSING, "required key is missing")
+    if kind == "extra_forbidden":
+        parent = _model_at(loc[:-1])
+        known = ", ".join(parent.model_fields) if parent is not None else ""
+        return Problem(path, error.get("input"), f"unknown key; allowed here: {known}")
+    message = str(error["msg"])
+    message = message.removeprefix("Value error, ")
+    return Problem(path, error.get("input"), message)
+
+
+def _flatten(errors: Sequence[Mapping[str, Any]]) -> Iterator[Problem]:
+    for error in errors:
+        yield _problem_from_error(error)
+
+
+def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConfig:
+    """Validate a configuration document (as parsed from TOML) into a :class:`RobotConfig`.
+
+    Raises :class:`~whexar.errors.ConfigError` listing every problem found.
+    """
+    try:
+        cfg = RobotConfig.model_validate(data, context={"defer_relations": True})
+    except ValidationError as exc:
+        errors = exc.errors(include_url=False)
+    else:
+        found = cfg.problems()
+        if found:
+            raise ConfigError(source, found)
+        return cfg
+    problems = list(_flatten(errors))
+    # Sections that validated on their own still get their relational checks,
+    # so a bad key in one section does not hide a duplicate ID in another.
+    failed = {e["loc"][0] for e in errors if e["loc"]}
+    for name, field in RobotConfig.model_fields.items():
+        if name in failed or name not in data or field.annotation is None:
+            continue
+        try:
+            section = TypeAdapter(field.annotation).validate_python(data[name])
+        except ValidationError:
+            continue
+        problems.extend(_section_problems(name, section))
+    raise ConfigError(source, problems)
+
+
+def _syntax_problem(exc: tomllib.TOMLDecodeError, text: str) -> Problem:
+    match = re.search(r"line (\d+), column (\d+)", str(exc))
+    if match is None:
+        return Problem("(file)", MISSING, f"valid TOML: {exc}")
+    line = int(match.group(1))
+    lines = text.splitlines()
+    shown = lines[line - 1].strip() if 0 < line <= len(lines) else ""
+    return Problem(f"line {line}", shown, f"valid TOML: {exc}")
+
+
+def load_config(path: str | Path) -> RobotConfig:
+    """Read and validate a TOML robot configuration.
+
+    Raises :class:`~whexar.errors.ConfigError` listing every problem: the key
+    path, the value found and what is allowed.
+    """
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise ConfigError(
+            source, [Problem("(file)", source, f"a readable TOML file ({reason})")]
+        ) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(source, [_syntax_problem(exc, text)]) from None
+    return parse_config(data, source)
+
+
+def config_schema() -> dict[str, Any]:
+    """JSON Schema of the configuration file, for editors."""
+    schema = RobotConfig.model_json_schema()
+    schema["title"] = "WHexaR robot configuration"
+    return schema
