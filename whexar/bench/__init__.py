@@ -1,0 +1,70 @@
+"""Benchmarks behind ``whexar bench …``: speed targets are measured here, not in tests.
+
+These are the only modules besides the clock that read the wall clock.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+Progress = Callable[[str], None] | None
+
+
+def median_seconds(fn: Callable[[], object], repeats: int, *, warmup: int = 20) -> float:
+    """Median wall time of one call of ``fn`` over ``repeats`` calls, in seconds."""
+    for _ in range(warmup):
+        fn()
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - start)
+    return statistics.median(samples)
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One measured figure next to its target (``target`` is an upper bound)."""
+
+    key: str
+    label: str
+    value: float
+    unit: str
+    target: float
+
+    @property
+    def passed(self) -> bool:
+        """True when the measured value meets the target."""
+        return self.value <= self.target
+
+
+@dataclass(frozen=True)
+class Report:
+    """The figures of one benchmark suite."""
+
+    suite: str
+    items: list[Figure] = field(default_factory=list)
+
+    @property
+    def figures(self) -> dict[str, float]:
+        """Key → value, for ``--json``."""
+        return {f.key: round(f.value, 3) for f in self.items}
+
+    @property
+    def passed(self) -> bool:
+        """True when every figure meets its target."""
+        return all(f.passed for f in self.items)
+
+    def render(self) -> str:
+        """A table for the terminal."""
+        lines = [f"whexar bench {self.suite}"]
+        for f in self.items:
+            verdict = "ok" if f.passed else "MISSED"
+            lines.append(
+                f"  {f.label:<44}{f.value:10.3f} {f.unit:<3} (target <= {f.target:g} {f.unit})"
+                f"  {verdict}"
+            )
+        return "\n".join(lines)

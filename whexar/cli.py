@@ -1,0 +1,237 @@
+"""``whexar`` command line.
+
+Exit codes: 0 success; 1 a configuration with problems, or a benchmark that
+missed its target; 2 bad input (an unknown leg, an unreachable target, a
+malformed option).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from whexar import __version__
+from whexar.errors import ConfigError, UsageError
+from whexar.robot import LEG_NAMES, POSITIONING_JOINTS, leg_index
+
+if TYPE_CHECKING:
+    from whexar.kinematics.geometry import LegGeometry
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+def _print_json(value: object) -> None:
+    print(json.dumps(value, indent=None, sort_keys=False))
+
+
+def _geometry(args: argparse.Namespace) -> LegGeometry:
+    from whexar.config import load_config
+    from whexar.kinematics.geometry import LegGeometry, default_geometry
+
+    if args.config is None:
+        return default_geometry()
+    return LegGeometry.from_config(load_config(args.config))
+
+
+# --------------------------------------------------------------------------- config
+
+
+def _config_check(args: argparse.Namespace) -> int:
+    from whexar.config import load_config
+
+    try:
+        load_config(args.file)
+    except ConfigError as exc:
+        count = len(exc.problems)
+        print(f"{exc.source}: {count} problem{'s' if count != 1 else ''}")
+        for problem in exc.problems:
+            print(f"  {problem}")
+        return 1
+    print("ok")
+    return 0
+
+
+def _config_schema(args: argparse.Namespace) -> int:
+    from whexar.config import config_schema
+
+    print(json.dumps(config_schema(), indent=2))
+    return 0
+
+
+# --------------------------------------------------------------------------- kinematics
+
+
+def _leg(value: str) -> int:
+    try:
+        return leg_index(value)
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _kin_ik(args: argparse.Namespace) -> int:
+    from whexar.kinematics.leg import ik
+
+    geometry = _geometry(args)
+    target = np.array([args.x, args.y, args.z]) / 1000.0
+    solution = ik(
+        target,
+        geometry,
+        pitch=math.radians(args.pitch),
+        target=args.target,
+        clamp=args.clamp,
+    )
+    values = solution.degrees
+    degrees = {
+        name: round(float(v), 4) + 0.0 for name, v in zip(POSITIONING_JOINTS, values, strict=True)
+    }
+    if args.json:
+        out: dict[str, object] = dict(degrees)
+        if args.clamp:
+            out["clamped"] = bool(solution.clamped)
+        _print_json(out)
+        return 0
+    print(
+        f"leg {args.leg} ({LEG_NAMES[args.leg]}), {args.target} at "
+        f"({args.x:g}, {args.y:g}, {args.z:g}) mm, pitch {args.pitch:g}°"
+    )
+    for name, value in degrees.items():
+        print(f"  {name:<11}{value:9.2f}°")
+    if args.clamp and solution.any_clamped:
+        print("  clamped: the target is out of reach or a joint hit its limit")
+    return 0
+
+
+def _kin_fk(args: argparse.Namespace) -> int:
+    from whexar.kinematics.leg import fk
+
+    geometry = _geometry(args)
+    angles = np.radians(np.array(args.angles, dtype=np.float64))
+    point = fk(angles, geometry, point=args.point) * 1000.0
+    xyz = {axis: round(float(v), 4) + 0.0 for axis, v in zip("xyz", point, strict=True)}
+    if args.json:
+        _print_json(xyz)
+        return 0
+    print(
+        f"leg {args.leg} ({LEG_NAMES[args.leg]}), {args.point} at "
+        f"({xyz['x']:.2f}, {xyz['y']:.2f}, {xyz['z']:.2f}) mm in the leg frame"
+    )
+    return 0
+
+
+# --------------------------------------------------------------------------- benchmarks
+
+
+def _bench_kin(args: argparse.Namespace) -> int:
+    from whexar.bench.kin import run
+
+    report = run(progress=None if args.json else print)
+    if args.json:
+        _print_json(report.figures)
+    else:
+        print(report.render())
+    return 0 if report.passed else 1
+
+
+# --------------------------------------------------------------------------- parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole ``whexar`` command tree."""
+    parser = argparse.ArgumentParser(
+        prog="whexar", description="WHexaR, the wheeled hexapod: runtime and tools."
+    )
+    parser.add_argument("--version", action="version", version=f"whexar {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    config = commands.add_parser("config", help="check the robot configuration")
+    config_cmds = config.add_subparsers(dest="config_command", required=True, metavar="ACTION")
+    check = config_cmds.add_parser("check", help="validate a TOML configuration file")
+    check.add_argument("file", type=Path, help="e.g. config/whexar.toml")
+    check.set_defaults(handler=_config_check)
+    schema = config_cmds.add_parser("schema", help="print the JSON Schema of the file")
+    schema.set_defaults(handler=_config_schema)
+
+    kin = commands.add_parser("kin", help="leg kinematics in the thesis's leg frame (mm, degrees)")
+    kin_cmds = kin.add_subparsers(dest="kin_command", required=True, metavar="ACTION")
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--leg", type=_leg, required=True, help="leg 0–5 or RF, LF, RM, LM, RR, LR")
+    common.add_argument("--json", action="store_true", help="print one JSON object")
+    common.add_argument(
+        "--config", type=Path, default=None, help="robot configuration (default: the thesis robot)"
+    )
+    ik_cmd = kin_cmds.add_parser(
+        "ik",
+        parents=[common],
+        help="joint angles for a foot target",
+        description="Inverse kinematics. X outward, Y down, Z forward from the coxa joint, "
+        "in mm. Prints coxa, trochanter, femur, tibia and tarsus in degrees "
+        "(Table 6.5's convention).",
+    )
+    ik_cmd.add_argument("x", type=float, help="mm outward")
+    ik_cmd.add_argument("y", type=float, help="mm down")
+    ik_cmd.add_argument("z", type=float, help="mm forward")
+    ik_cmd.add_argument(
+        "--pitch", type=float, default=0.0, help="body pitch the trochanter follows, degrees"
+    )
+    ik_cmd.add_argument(
+        "--target",
+        choices=("tarsus", "contact"),
+        default="tarsus",
+        help="which point X Y Z gives: the tarsus joint (thesis) or the wheel contact",
+    )
+    ik_cmd.add_argument(
+        "--clamp", action="store_true", help="clamp to the workspace and limits instead of failing"
+    )
+    ik_cmd.set_defaults(handler=_kin_ik)
+    fk_cmd = kin_cmds.add_parser(
+        "fk",
+        parents=[common],
+        help="foot position for joint angles",
+        description="Forward kinematics. Angles in degrees, Table 6.5's convention; prints "
+        "x, y, z in mm in the leg frame.",
+    )
+    fk_cmd.add_argument(
+        "angles", type=float, nargs=5, metavar="Q", help="coxa trochanter femur tibia tarsus"
+    )
+    fk_cmd.add_argument(
+        "--point",
+        choices=("tarsus", "contact"),
+        default="tarsus",
+        help="the tarsus joint (thesis) or the wheel contact",
+    )
+    fk_cmd.set_defaults(handler=_kin_fk)
+
+    bench = commands.add_parser("bench", help="measure speed against the targets")
+    bench_cmds = bench.add_subparsers(dest="bench_command", required=True, metavar="SUITE")
+    bench_kin = bench_cmds.add_parser("kin", help="inverse kinematics speed")
+    bench_kin.add_argument("--json", action="store_true", help="print the medians as JSON")
+    bench_kin.set_defaults(handler=_bench_kin)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``whexar`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    handler: Handler = args.handler
+    try:
+        return handler(args)
+    except ConfigError as exc:
+        print(f"whexar: {exc}", file=sys.stderr)
+        return 1
+    except UsageError as exc:
+        print(f"whexar: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
