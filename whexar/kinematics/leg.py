@@ -167,7 +167,7 @@ def ik(
     reach = np.broadcast_to(reachable, lt.shape)
     limited = np.minimum(np.maximum(angles, lo), hi)
     # Keep the last segment vertical as far as the clamped femur and tibia allow.
-    tarsus = -_HALF_PI - limited[..., 2] - limited[..., 3]
+    tarsus = (math.pi / 2 - limited[..., 2] - limited[..., 3]) % _TWO_PI - math.pi
     limited[..., 4] = np.minimum(np.maximum(tarsus, lo[4]), hi[4])
     return IKSolution(limited, reach, ~reach | outside.any(axis=-1))
 
