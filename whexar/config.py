@@ -44,6 +44,8 @@ from pydantic import (
 )
 
 from whexar.errors import MISSING, ConfigError, Problem
+from whexar.kinematics.indices import STANDARD_GRAVITY, SUPPLY_VOLTAGE, WHEXAR_MASS
+from whexar.kinematics.sensing import IR_EXPONENT, IR_K_CM
 from whexar.robot import JOINT_NAMES, LEG_NAMES, POSITIONING_JOINTS, servo_id
 
 ServoModelName = Literal["MX-28", "MX-64", "MX-106"]
@@ -87,11 +89,11 @@ class RobotSpec(_Section):
     """Whole-robot constants."""
 
     name: str = "WHexaR"
-    mass_kg: Positive = 8.8
+    mass_kg: Positive = WHEXAR_MASS
     """Total mass used for the cost of transport (6.8.1)."""
-    supply_voltage_v: Positive = 12.0
+    supply_voltage_v: Positive = SUPPLY_VOLTAGE
     """Supply voltage in the experiments (5.3.1, 6.8)."""
-    gravity_m_s2: Positive = 9.81
+    gravity_m_s2: Positive = STANDARD_GRAVITY
     """Gravitational acceleration used by the thesis (6.8.1)."""
 
 
@@ -352,9 +354,9 @@ class SensorBoardSpec(_Section):
 class IRSpec(_Section):
     """IR rangefinders on the front legs, calibrated by eq. 5.5 (5.3.5, Table 5.4)."""
 
-    k_cm: Positive = 149_630.2188732250
+    k_cm: Positive = IR_K_CM
     """Coefficient of the trend line y[cm] = k·x^e, x the 10-bit ADC value (eq. 5.5)."""
-    exponent: Finite = -1.4841404565
+    exponent: Finite = IR_EXPONENT
     """Exponent e of eq. 5.5."""
     min_distance_mm: Positive = 100.0
     """Nearest calibrated distance (Table 5.4: 10 cm)."""
