@@ -44,6 +44,7 @@ from pydantic import (
 )
 
 from whexar.errors import MISSING, ConfigError, Problem
+from whexar.kinematics.gait import GAIT_RANKING
 from whexar.kinematics.indices import STANDARD_GRAVITY, SUPPLY_VOLTAGE, WHEXAR_MASS
 from whexar.kinematics.sensing import IR_EXPONENT, IR_K_CM
 from whexar.robot import JOINT_NAMES, LEG_NAMES, POSITIONING_JOINTS, servo_id
@@ -407,10 +408,6 @@ class FSRSpec(_Section):
 
 
 # --------------------------------------------------------------------------- gait selection
-
-
-GAIT_RANKING: Final = ("wheels", "tripod", "tetrapod", "ripple", "wave")
-"""Locomotion modes from flat-terrain to difficult-terrain (5.4, Table 5.9)."""
 
 
 class GaitThresholds(_Section):
