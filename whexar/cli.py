@@ -125,6 +125,57 @@ def _kin_fk(args: argparse.Namespace) -> int:
     return 0
 
 
+def _kin_gait(args: argparse.Namespace) -> int:
+    from whexar.config import RobotConfig, load_config
+    from whexar.kinematics.body import leg_to_body, stance_feet
+    from whexar.kinematics.gait import GAIT_RANKING, gait
+    from whexar.kinematics.stability import gait_stability_margin
+    from whexar.kinematics.trajectory import FootTrajectory
+
+    chosen = gait(args.name)
+    if args.width < 16:
+        raise UsageError(f"--width {args.width}; allowed: 16 characters or more")
+    cfg = RobotConfig() if args.config is None else load_config(args.config)
+    feet = leg_to_body(stance_feet(cfg.stance(args.stance)))
+    trajectory = FootTrajectory(args.step_mm / 1000, args.height_mm / 1000, chosen.duty_factor)
+    margin, at = gait_stability_margin(chosen, feet, trajectory)
+    if args.json:
+        _print_json(
+            {
+                "gait": chosen.name,
+                "duty_factor": chosen.duty_factor,
+                "offsets": dict(zip(LEG_NAMES, chosen.offsets, strict=True)),
+                "groups": [list(g) for g in chosen.groups],
+                "stability_rank": chosen.stability_rank,
+                "min_margin_mm": round(margin * 1000, 2),
+                "min_margin_phase": round(at, 4),
+            }
+        )
+        return 0
+    width = args.width
+    phases = np.arange(width) / width
+    swinging = chosen.in_swing(phases)
+    print(
+        f"{chosen.name}: duty factor {chosen.duty_factor:.2f}, "
+        f"groups {' | '.join('+'.join(g) for g in chosen.groups)}"
+    )
+    print(f"stability rank {chosen.stability_rank} in {' < '.join(GAIT_RANKING)}")
+    ticks = [" "] * width
+    for k in range(4):
+        label = f"{k / 4:g}"
+        pos = k * width // 4
+        ticks[pos : pos + len(label)] = list(label)
+    print("       " + "".join(ticks) + "1")
+    for leg, row in zip(LEG_NAMES, swinging.T, strict=True):
+        print(f"  {leg}   " + "".join("^" if up else "_" for up in row))
+    print("       ^ swing   _ stance (thesis Fig. 3.3)")
+    print(
+        f"smallest static stability margin {1000 * margin:.1f} mm at phase {at:.3f} "
+        f"({args.stance} stance, step {args.step_mm:g} mm)"
+    )
+    return 0
+
+
 # --------------------------------------------------------------------------- benchmarks
 
 
@@ -207,6 +258,22 @@ def build_parser() -> argparse.ArgumentParser:
         help="the tarsus joint (thesis) or the wheel contact",
     )
     fk_cmd.set_defaults(handler=_kin_fk)
+    gait_cmd = kin_cmds.add_parser(
+        "gait",
+        help="phase chart and stability margin of a gait",
+        description="Draw which leg swings when over one cycle, and the smallest static "
+        "stability margin of the gait in a stance.",
+    )
+    gait_cmd.add_argument("name", help="tripod, tetrapod, ripple or wave")
+    gait_cmd.add_argument("--stance", default="default", help="stance preset (default: default)")
+    gait_cmd.add_argument("--step-mm", type=float, default=100.0, help="step length, mm")
+    gait_cmd.add_argument("--height-mm", type=float, default=40.0, help="step height, mm")
+    gait_cmd.add_argument("--width", type=int, default=48, help="chart width in characters")
+    gait_cmd.add_argument("--json", action="store_true", help="print one JSON object")
+    gait_cmd.add_argument(
+        "--config", type=Path, default=None, help="robot configuration (default: the thesis robot)"
+    )
+    gait_cmd.set_defaults(handler=_kin_gait)
 
     bench = commands.add_parser("bench", help="measure speed against the targets")
     bench_cmds = bench.add_subparsers(dest="bench_command", required=True, metavar="SUITE")

@@ -10,13 +10,17 @@ frame shared by the supports and the CoG; a z column is ignored.
 
 from __future__ import annotations
 
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
 from whexar.robot import N_LEGS
+
+if TYPE_CHECKING:
+    from whexar.kinematics.gait import Gait
+    from whexar.kinematics.trajectory import FootTrajectory
 
 MIN_SUPPORTS: Final = 3
 """Fewest supports that can enclose an area (3.2.2: a tripod stance is the minimum)."""
@@ -157,3 +161,35 @@ __all__ = [
     "static_stability_margins",
     "triangle_margin",
 ]
+
+
+def gait_stability_margin(
+    gait: Gait,
+    feet: ArrayLike,
+    trajectory: FootTrajectory,
+    *,
+    samples: int = 600,
+    cog: ArrayLike = (0.0, 0.0),
+) -> tuple[float, float]:
+    """Smallest static stability margin over one gait cycle, and the phase where it occurs.
+
+    ``feet`` (6, 2) or (6, 3) are the neutral foot points in the body frame; each
+    leg moves along x by its foot trajectory at its own phase, and only the legs
+    in stance support the body (3.2.1–3.2.2). The body is taken to move steadily,
+    so the CoG stays at ``cog`` in the body frame.
+    """
+    if not (isinstance(samples, int) and samples > 0):
+        raise UsageError(f"samples = {samples!r}: must be a positive whole number")
+    neutral = _planar("feet", feet, (N_LEGS, N_LEGS))
+    centre = _point("cog", cog)
+    phases = np.arange(samples) / samples
+    along, _ = trajectory.at(gait.leg_phase(phases))
+    swinging = gait.in_swing(phases)
+    worst, worst_phase = np.inf, 0.0
+    for k in range(samples):
+        points = neutral.copy()
+        points[:, 0] += along[k]
+        margin = static_stability_margin(points[~swinging[k]], centre)
+        if margin < worst:
+            worst, worst_phase = margin, float(phases[k])
+    return float(worst), worst_phase
