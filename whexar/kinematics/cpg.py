@@ -43,6 +43,7 @@ from typing import Final
 
 import numpy as np
 
+from whexar._checks import non_negative, positive, real
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
 
@@ -148,8 +149,8 @@ class CpgOrbit:
         Returns the stored samples, or the points at ``phase`` if given. Fig. 8.8b uses
         l = 0.06 m and h = 0.03 m.
         """
-        length = _positive("stride_length", stride_length)
-        height = _non_negative("stride_height", stride_height)
+        length = positive("stride_length", stride_length)
+        height = non_negative("stride_height", stride_height)
         if phase is None:
             x, z = self.x_norm, self.z_norm
         else:
@@ -166,29 +167,6 @@ def _finite_array(name: str, value: ArrayLike) -> FloatArray:
         bad = arr[~np.isfinite(arr)].flat[0]
         raise UsageError(f"{name} contains {bad!r}: values must be finite")
     return arr
-
-
-def _real(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise UsageError(f"{name} = {value!r}: expected a real number")
-    number = float(value)
-    if not math.isfinite(number):
-        raise UsageError(f"{name} = {value!r}: must be finite")
-    return number
-
-
-def _positive(name: str, value: object) -> float:
-    number = _real(name, value)
-    if number <= 0.0:
-        raise UsageError(f"{name} = {value!r}: must be > 0")
-    return number
-
-
-def _non_negative(name: str, value: object) -> float:
-    number = _real(name, value)
-    if number < 0.0:
-        raise UsageError(f"{name} = {value!r}: must be ≥ 0")
-    return number
 
 
 def _oscillator_name(name: str) -> str:
@@ -208,16 +186,16 @@ def _parameters(name: str, overrides: Mapping[str, float]) -> dict[str, float]:
         )
     params = dict(defaults)
     for key, value in overrides.items():
-        params[key] = _real(key, value)
+        params[key] = real(key, value)
     # Ranges for which each oscillator has a stable limit cycle.
     if name == "stick_slip":
         for key in ("f_s", "v_dr", "epsilon"):
-            _positive(key, params[key])
+            positive(key, params[key])
         for key in ("d_c", "delta"):
-            _non_negative(key, params[key])
+            non_negative(key, params[key])
     else:
-        _positive("mu", params["mu"])
-        _positive("omega", params["omega"])
+        positive("mu", params["mu"])
+        positive("omega", params["omega"])
     return params
 
 
@@ -318,7 +296,7 @@ def _step_size(key: str, p: Mapping[str, float], dt: float | None) -> float:
         if key == "stick_slip":
             return min(_MAX_STEP, _STIFF_STEP_FACTOR / rate)
         return min(_MAX_STEP, 1.0 / (_SMOOTH_STEPS_PER_RATE * rate))
-    step = _positive("dt", dt)
+    step = positive("dt", dt)
     if step * rate > RK4_STABILITY_LIMIT:
         limit = RK4_STABILITY_LIMIT / rate
         raise UsageError(
@@ -349,8 +327,8 @@ def simulate(
     key = _oscillator_name(name)
     p = _parameters(key, params)
     step = _step_size(key, p, dt)
-    x0, z0 = (_real("initial X", initial[0]), _real("initial Z", initial[1]))
-    steps = math.ceil(_positive("duration", duration) / step - 1e-9)
+    x0, z0 = (real("initial X", initial[0]), real("initial Z", initial[1]))
+    steps = math.ceil(positive("duration", duration) / step - 1e-9)
     f = _vector_field(key, p)
     xs, zs = [x0], [z0]
     x, z = x0, z0
@@ -559,8 +537,8 @@ def cpg_orbit(
     else:
         if len(initial) != 2:
             raise UsageError(f"initial = {initial!r}: expected (X₀, Z₀)")
-        start = (_real("initial X", initial[0]), _real("initial Z", initial[1]))
-    tol = _positive("stick_tolerance", stick_tolerance)
+        start = (real("initial X", initial[0]), real("initial Z", initial[1]))
+    tol = positive("stick_tolerance", stick_tolerance)
     return _cached_orbit(key, tuple(sorted(p.items())), n_samples, step, start, tol)
 
 

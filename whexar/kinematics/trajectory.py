@@ -15,13 +15,13 @@ the phases at which each leg starts its swing.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Final, Literal, get_args
 
 import numpy as np
 
+from whexar._checks import non_negative, positive, real
 from whexar._typing import ArrayLike, BoolArray, FloatArray
 from whexar.errors import UsageError
 from whexar.kinematics.cpg import CpgOrbit
@@ -51,29 +51,6 @@ DEFAULT_CONTACT_TOLERANCE: Final = 1e-9
 """Foot height above the ground (m) that still counts as contact; absorbs rounding."""
 
 
-def _real(name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.floating | np.integer):
-        raise UsageError(f"{name} = {value!r}: expected a real number")
-    number = float(value)
-    if not math.isfinite(number):
-        raise UsageError(f"{name} = {value!r}: must be finite")
-    return number
-
-
-def _length(value: object) -> float:
-    number = _real("step_length", value)
-    if number <= 0.0:
-        raise UsageError(f"step_length = {value!r} m: must be > 0")
-    return number
-
-
-def _height(value: object) -> float:
-    number = _real("step_height", value)
-    if number < 0.0:
-        raise UsageError(f"step_height = {value!r} m: must be ≥ 0")
-    return number
-
-
 def _unit_interval(name: str, value: ArrayLike) -> FloatArray:
     """Values in [0, 1]; out-of-range values are refused, never clipped."""
     try:
@@ -87,7 +64,7 @@ def _unit_interval(name: str, value: ArrayLike) -> FloatArray:
 
 
 def _duty(value: object) -> float:
-    number = _real("duty_factor", value)
+    number = real("duty_factor", value)
     if not 0.0 < number < 1.0:
         raise UsageError(f"duty_factor = {value!r}: must lie in (0, 1)")
     return number
@@ -103,7 +80,10 @@ def parabolic_swing(
     rounds below zero.
     """
     uu = _unit_interval("u", u)
-    length, height = _length(step_length), _height(step_height)
+    length, height = (
+        positive("step_length", step_length, "m"),
+        non_negative("step_height", step_height, "m"),
+    )
     s = length * (uu - 0.5)
     h = 4.0 * height * uu * (1.0 - uu)
     return s, h
@@ -117,7 +97,10 @@ def half_sine_swing(
     This is the sinusoidal trajectory the parabola replaced (Fig. 3.13).
     """
     uu = _unit_interval("u", u)
-    length, height = _length(step_length), _height(step_height)
+    length, height = (
+        positive("step_length", step_length, "m"),
+        non_negative("step_height", step_height, "m"),
+    )
     s = length * (uu - 0.5)
     h = height * np.maximum(np.sin(np.pi * uu), 0.0)
     return s, h
@@ -126,7 +109,7 @@ def half_sine_swing(
 def stance(u: ArrayLike, step_length: float) -> tuple[FloatArray, FloatArray]:
     """Stance: s from +L/2 to −L/2 linearly in u, h = 0 (Diosdado 2014, 3.4, Fig. 3.13)."""
     uu = _unit_interval("u", u)
-    length = _length(step_length)
+    length = positive("step_length", step_length, "m")
     s = length * (0.5 - uu)
     return s, np.zeros_like(s)
 
@@ -163,8 +146,8 @@ class FootTrajectory:
     swing: SwingShape | CpgOrbit = "parabola"
 
     def __post_init__(self) -> None:
-        _length(self.step_length)
-        _height(self.step_height)
+        positive("step_length", self.step_length, "m")
+        non_negative("step_height", self.step_height, "m")
         _duty(self.duty_factor)
         if not isinstance(self.swing, CpgOrbit) and self.swing not in SWING_SHAPES:
             raise UsageError(
@@ -300,7 +283,7 @@ def adapt_swing(
         raise UsageError("u must be non-decreasing: samples of one swing in order")
     if np.any(hh < 0.0):
         raise UsageError(f"h contains {hh[hh < 0.0][0]!r} m: nominal heights must be ≥ 0")
-    tol = _real("tolerance", tolerance)
+    tol = real("tolerance", tolerance)
     if tol < 0.0:
         raise UsageError(f"tolerance = {tolerance!r} m: must be ≥ 0")
     g = _ground_heights(ground, ss)
@@ -334,8 +317,8 @@ class SwingTracker:
 
     def __init__(self, apex_u: float = 0.5, completion_margin: float = 0.0) -> None:
         """``apex_u`` is the phase of the highest swing point: 0.5 for both analytic shapes."""
-        apex = _real("apex_u", apex_u)
-        margin = _real("completion_margin", completion_margin)
+        apex = real("apex_u", apex_u)
+        margin = real("completion_margin", completion_margin)
         if not 0.0 <= apex <= 1.0:
             raise UsageError(f"apex_u = {apex_u!r}: allowed: [0, 1]")
         if not 0.0 <= margin < 1.0:
@@ -364,7 +347,7 @@ class SwingTracker:
 
     def step(self, u: float, contact: bool) -> SwingStatus:
         """Advance to swing phase ``u`` with the current contact reading; return the status."""
-        phase = float(_unit_interval("u", _real("u", u)))
+        phase = float(_unit_interval("u", real("u", u)))
         if self._status != "swinging":
             return self._status
         if phase < self._u:

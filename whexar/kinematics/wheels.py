@@ -28,6 +28,7 @@ from typing import Final
 
 import numpy as np
 
+from whexar._checks import positive, real
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
 from whexar.robot import LEG_NAMES, N_LEGS, leg_side
@@ -70,13 +71,6 @@ class WheelCommand:
     """
 
 
-def _finite(name: str, value: float) -> float:
-    number = float(value)
-    if not np.isfinite(number):
-        raise UsageError(f"{name} = {value!r}: must be a finite number")
-    return number
-
-
 def _contacts(contacts: ArrayLike) -> FloatArray:
     points = np.asarray(contacts, dtype=np.float64)
     if points.shape not in ((N_LEGS, 2), (N_LEGS, 3)):
@@ -101,13 +95,6 @@ def _coxa(coxa: ArrayLike | None) -> FloatArray:
     if not np.all(np.isfinite(angles)):
         raise UsageError(f"coxa = {angles.tolist()!r}: angles must be finite")
     return angles
-
-
-def _radius(wheel_radius: float) -> float:
-    radius = _finite("wheel_radius", wheel_radius)
-    if radius <= 0.0:
-        raise UsageError(f"wheel_radius = {wheel_radius!r}: must be > 0 m")
-    return radius
 
 
 def _readonly(array: FloatArray) -> FloatArray:
@@ -135,8 +122,8 @@ def wheel_twist(
     """
     points = _contacts(contacts)
     coxa_angles = _coxa(coxa)
-    radius = _radius(wheel_radius)
-    vx_, vy_, omega = _finite("vx", vx), _finite("vy", vy), _finite("yaw_rate", yaw_rate)
+    radius = positive("wheel_radius", wheel_radius, "m")
+    vx_, vy_, omega = real("vx", vx), real("vy", vy), real("yaw_rate", yaw_rate)
 
     # ω ẑ × (x, y) = (−ω y, ω x)
     vel_x = vx_ - omega * points[:, 1]
@@ -172,7 +159,7 @@ def wheel_straight(
     wheel_radius: float = WHEEL_RADIUS,
 ) -> WheelCommand:
     """Drive straight ahead at ``speed`` m/s (negative reverses): wheels not turned (Fig. 5.15a)."""
-    v = _finite("speed", speed)
+    v = real("speed", speed)
     return wheel_twist(contacts, v, 0.0, 0.0, coxa=coxa, wheel_radius=wheel_radius)
 
 
@@ -189,8 +176,8 @@ def wheel_sideways(
     The body keeps its orientation and all wheels point the same way (Žák 2023, Fig. 5.15b;
     6.5.2 "Driving Sideways" used ±45°). Angles beyond ±90° are reached by reversing the wheels.
     """
-    v = _finite("speed", speed)
-    phi = _finite("angle", angle)
+    v = real("speed", speed)
+    phi = real("angle", angle)
     return wheel_twist(
         contacts, v * np.cos(phi), v * np.sin(phi), 0.0, coxa=coxa, wheel_radius=wheel_radius
     )
@@ -232,7 +219,7 @@ def wheel_turn(
     Note that eq. 5.11 (P'_x = R − W_b/2 − P_x) describes the wheels on the same side as S,
     although the text of 5.4 names that angle α₁ for the far side; we follow the geometry.
     """
-    r = _finite("radius", radius)
+    r = real("radius", radius)
     if r == 0.0:
         raise UsageError(
             "radius = 0: the centre of rotation would be the body centre, which is rotation on "
@@ -244,10 +231,10 @@ def wheel_turn(
             "forward speed (m/s) or the yaw rate (rad/s)"
         )
     if speed is not None:
-        omega = _finite("speed", speed) / r
+        omega = real("speed", speed) / r
     else:
         assert yaw_rate is not None  # guaranteed by the check above; narrows the type
-        omega = _finite("yaw_rate", yaw_rate)
+        omega = real("yaw_rate", yaw_rate)
     # The body centre C rotates about S = (0, R): v_C = ω ẑ × (C − S) = (ωR, 0).
     return wheel_twist(contacts, omega * r, 0.0, omega, coxa=coxa, wheel_radius=wheel_radius)
 
