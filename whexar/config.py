@@ -28,7 +28,7 @@ import re
 import tomllib
 import types
 import typing
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Final, Literal
 
@@ -62,9 +62,6 @@ a few millimetres of measuring slack, not a different leg.
 
 SERVO_ID_RANGE: Final = (0, 252)
 """IDs a Dynamixel (Protocol 2.0) accepts; 253–255 are reserved (ROBOTIS e-manual)."""
-
-BUS_BAUDRATES: Final = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
-"""MX (2.0) baud rates that dynamixel-sdk's ``setBaudRate`` accepts (4.5 Mbps it does not)."""
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -316,7 +313,10 @@ class BusSpec(_Section):
     protocol: float = 2.0
     """Dynamixel protocol; the MX servos run the MX (2.0) firmware (5.3.6)."""
     baudrate: Literal[9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000] = 1_000_000
-    """1 Mbps: the fastest rate at which the thesis's bus ran without errors (6.1.1)."""
+    """1 Mbps: the fastest rate at which the thesis's bus ran without errors (6.1.1).
+
+    The allowed values are the MX (2.0) rates that dynamixel-sdk's ``setBaudRate``
+    accepts (it has no 4.5 Mbps)."""
     return_delay_time_us: int = Field(default=20, ge=0, le=508, multiple_of=2)
     """Return Delay Time; the register counts 2 µs units (thesis used 20 µs, 5.3.6)."""
 
@@ -578,12 +578,6 @@ class RobotConfig(_Section):
             found.extend(check(self))
         return found
 
-    def leg(self, leg: int | str) -> LegSpec:
-        """The leg given by index or name."""
-        from whexar.robot import leg_index
-
-        return self.legs[leg_index(leg)]
-
     def stance(self, name: str) -> StanceSpec:
         """The stance preset called ``name``; a ConfigError names the known ones."""
         try:
@@ -742,11 +736,6 @@ def _problem_from_error(error: Mapping[str, Any]) -> Problem:
     return Problem(path, error.get("input"), message)
 
 
-def _flatten(errors: Sequence[Mapping[str, Any]]) -> Iterator[Problem]:
-    for error in errors:
-        yield _problem_from_error(error)
-
-
 def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConfig:
     """Validate a configuration document (as parsed from TOML) into a :class:`RobotConfig`.
 
@@ -761,7 +750,7 @@ def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConf
         if found:
             raise ConfigError(source, found)
         return cfg
-    problems = list(_flatten(errors))
+    problems = [_problem_from_error(error) for error in errors]
     # Sections that validated on their own still get their relational checks,
     # so a bad key in one section does not hide a duplicate ID in another.
     failed = {e["loc"][0] for e in errors if e["loc"]}

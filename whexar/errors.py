@@ -42,7 +42,7 @@ class Problem:
     allowed: str
 
     def __str__(self) -> str:
-        shown = "(missing)" if self.value is _MISSING else repr(self.value)
+        shown = "(missing)" if self.value is MISSING else repr(self.value)
         where = self.path or "(top level)"
         return f"{where} = {shown}: {self.allowed}"
 
@@ -52,8 +52,7 @@ class _Missing:
         return "(missing)"
 
 
-_MISSING: object = _Missing()
-MISSING = _MISSING
+MISSING: object = _Missing()
 """Stands for the value of a key that is absent from a configuration."""
 
 
