@@ -222,7 +222,9 @@ def build_parser() -> argparse.ArgumentParser:
         parents=[common],
         help="joint angles for a foot target",
         description="Inverse kinematics. X outward, Y down, Z forward from the coxa joint, "
-        "in mm. Prints coxa, trochanter, femur, tibia and tarsus in degrees "
+        "in mm, in the leg's own frame (left legs are mirror images, so every leg gives "
+        "the same angles for the same leg-frame target). Prints coxa, trochanter, femur, "
+        "tibia and tarsus in degrees "
         "(Table 6.5's convention).",
     )
     ik_cmd.add_argument("x", type=float, help="mm outward")
