@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from whexar.errors import UsageError
+from whexar.kinematics.geometry import default_geometry
 from whexar.kinematics.wheels import (
-    WHEEL_RADIUS,
     direction_for_heading,
     heading_from_direction,
     wheel_sideways,
@@ -23,6 +23,7 @@ from whexar.kinematics.wheels import (
 
 # Thesis geometry (Fig. 5.16): W_b between the front coxae (2 × 74 mm, Table 5.2); eq. 5.9 puts
 # the front coxa L_b/2 ahead of C, which in the project frame (coxa at x = 0.30 m) is L_b = 0.60.
+WHEEL_RADIUS = default_geometry().wheel_radius  # Table 5.2: 33 mm
 W_B = 2 * 0.074
 L_B = 0.60
 P_X = 0.25  # foot reach outwards from the coxa, leg frame (m)

@@ -650,7 +650,7 @@ def _check_stances(cfg: RobotConfig) -> list[Problem]:
     found: list[Problem] = []
     for name, stance in cfg.stances.items():
         try:
-            ik(stance_feet(stance, geometry), geometry, target="contact")
+            ik(stance_feet(stance), geometry, target="contact")
         except KinematicsError as exc:
             found.append(
                 Problem(

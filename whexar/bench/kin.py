@@ -21,7 +21,7 @@ TEN_K_TARGET_MS = 5.0
 def run(progress: Progress = None) -> Report:
     """Measure and return the figures; ``progress`` receives a line per step."""
     geometry = default_geometry()
-    feet = stance_feet(RobotConfig().stance("default"), geometry)
+    feet = stance_feet(RobotConfig().stance("default"))
     rng = np.random.default_rng(7)
     # 10,000 targets spread over the working volume under the default stance,
     # some out of reach: clamping is part of the cost a controller pays.

@@ -20,7 +20,7 @@ import numpy as np
 
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
-from whexar.kinematics.geometry import LegGeometry, default_geometry, leg_positions
+from whexar.kinematics.geometry import SIDE_SIGN, LegGeometry, default_geometry, leg_positions
 from whexar.kinematics.leg import IKSolution, Target, ik
 from whexar.robot import N_LEGS
 
@@ -47,7 +47,7 @@ def leg_to_body(points: ArrayLike, geometry: LegGeometry | None = None) -> Float
     p = _six(points, "leg-frame points")
     out = np.empty_like(p)
     out[..., 0] = p[..., 2]
-    out[..., 1] = -g.sides * p[..., 0]
+    out[..., 1] = -SIDE_SIGN * p[..., 0]
     out[..., 2] = -p[..., 1]
     return out + g.mounts
 
@@ -57,7 +57,7 @@ def body_to_leg(points: ArrayLike, geometry: LegGeometry | None = None) -> Float
     g = default_geometry() if geometry is None else geometry
     d = _six(points, "body-frame points") - g.mounts
     out = np.empty_like(d)
-    out[..., 0] = -g.sides * d[..., 1]
+    out[..., 0] = -SIDE_SIGN * d[..., 1]
     out[..., 1] = -d[..., 2]
     out[..., 2] = d[..., 0]
     return out
@@ -112,13 +112,12 @@ def apply_body_pose(feet: ArrayLike, pose: BodyPose) -> FloatArray:
     return result
 
 
-def stance_feet(stance: StanceSpec, geometry: LegGeometry | None = None) -> FloatArray:
+def stance_feet(stance: StanceSpec) -> FloatArray:
     """The six wheel-contact points of a stance preset, each in its leg frame (6, 3).
 
     Front legs turn forward and rear legs backward by ``front_rear_yaw_deg``
     (6.4); in a leg frame a forward turn is +z on both sides.
     """
-    del geometry  # a stance is the same in every leg frame; kept for symmetry
     yaw = math.radians(stance.front_rear_yaw_deg)
     sign = {"front": 1.0, "middle": 0.0, "rear": -1.0}
     reach, height = stance.reach_mm / 1000, stance.height_mm / 1000

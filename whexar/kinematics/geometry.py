@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from whexar._typing import FloatArray
-from whexar.robot import LEG_NAMES, POSITIONING_JOINTS
+from whexar.robot import LEG_NAMES, N_LEGS, POSITIONING_JOINTS, leg_side
 
 if TYPE_CHECKING:
     from whexar.config import RobotConfig
@@ -30,6 +30,12 @@ if TYPE_CHECKING:
 DH_TO_LEG: FloatArray = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
 """Rotation taking DH base coordinates (Table 5.3) to the thesis leg frame (Fig. 4.3)."""
 DH_TO_LEG.setflags(write=False)
+
+SIDE_SIGN: FloatArray = np.array(
+    [1.0 if leg_side(leg) == "right" else -1.0 for leg in range(N_LEGS)]
+)
+"""+1 for right legs, −1 for left legs: the mirror between leg frames and the body (5.1)."""
+SIDE_SIGN.setflags(write=False)
 
 
 def _frozen(values: object) -> FloatArray:
@@ -63,9 +69,7 @@ class LegGeometry:
     wheel_radius: float
     """Wheel axle to ground, m (Table 5.2: 33 mm)."""
     mounts: FloatArray
-    """(6, 3) coxa joints in the body frame, m."""
-    sides: FloatArray
-    """(6,) +1 for right legs, −1 for left legs."""
+    """(6, 3) coxa joints in the body frame, m (legs in :data:`LEG_NAMES` order)."""
 
     @cached_property
     def trochanter_offset(self) -> float:
@@ -130,7 +134,6 @@ class LegGeometry:
             direction_length=config.joints.direction.length_mm / 1000,
             wheel_radius=config.joints.wheel.length_mm / 1000,
             mounts=_frozen([[c / 1000 for c in leg.mount_mm] for leg in config.legs]),
-            sides=_frozen([1.0 if leg.name[0] == "R" else -1.0 for leg in config.legs]),
         )
 
 

@@ -31,16 +31,8 @@ import numpy as np
 from whexar._checks import positive, real
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
-from whexar.robot import LEG_NAMES, N_LEGS, leg_side
-
-WHEEL_RADIUS: Final = 0.033
-"""Wheel radius in metres (Žák 2023, Table 5.2: wheel, 33 mm)."""
-
-SIDE_SIGN: Final[FloatArray] = np.array(
-    [1.0 if leg_side(leg) == "right" else -1.0 for leg in range(N_LEGS)]
-)
-"""+1 for right legs, −1 for left legs: maps body-frame yaw to each leg's mirrored frame (5.1)."""
-SIDE_SIGN.setflags(write=False)
+from whexar.kinematics.geometry import SIDE_SIGN, default_geometry
+from whexar.robot import LEG_NAMES, N_LEGS
 
 # Below this ground speed (m/s) a wheel is taken to sit at the centre of rotation: its heading
 # is then undefined and we keep it neutral instead of amplifying rounding noise through atan2.
@@ -109,7 +101,7 @@ def wheel_twist(
     yaw_rate: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float = WHEEL_RADIUS,
+    wheel_radius: float | None = None,
 ) -> WheelCommand:
     """Wheel set-points that move the body with twist (vx, vy, ω) about its centre C.
 
@@ -122,7 +114,12 @@ def wheel_twist(
     """
     points = _contacts(contacts)
     coxa_angles = _coxa(coxa)
-    radius = positive("wheel_radius", wheel_radius, "m")
+    # The configured robot's wheel (Table 5.2: 33 mm) unless told otherwise.
+    radius = (
+        default_geometry().wheel_radius
+        if wheel_radius is None
+        else positive("wheel_radius", wheel_radius, "m")
+    )
     vx_, vy_, omega = real("vx", vx), real("vy", vy), real("yaw_rate", yaw_rate)
 
     # ω ẑ × (x, y) = (−ω y, ω x)
@@ -156,7 +153,7 @@ def wheel_straight(
     speed: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float = WHEEL_RADIUS,
+    wheel_radius: float | None = None,
 ) -> WheelCommand:
     """Drive straight ahead at ``speed`` m/s (negative reverses): wheels not turned (Fig. 5.15a)."""
     v = real("speed", speed)
@@ -169,7 +166,7 @@ def wheel_sideways(
     angle: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float = WHEEL_RADIUS,
+    wheel_radius: float | None = None,
 ) -> WheelCommand:
     """Drive at ``speed`` m/s towards body-frame direction ``angle`` (rad, counter-clockwise).
 
@@ -188,7 +185,7 @@ def wheel_spin(
     yaw_rate: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float = WHEEL_RADIUS,
+    wheel_radius: float | None = None,
 ) -> WheelCommand:
     """Rotate on the spot about the body centre C at ``yaw_rate`` rad/s (positive = left, CCW).
 
@@ -206,7 +203,7 @@ def wheel_turn(
     speed: float | None = None,
     yaw_rate: float | None = None,
     coxa: ArrayLike | None = None,
-    wheel_radius: float = WHEEL_RADIUS,
+    wheel_radius: float | None = None,
 ) -> WheelCommand:
     """Turn about S = (0, ``radius``) on the body's lateral axis (Žák 2023, eq. 5.11–5.16).
 
@@ -266,7 +263,6 @@ def heading_from_direction(direction: ArrayLike, coxa: ArrayLike | None = None) 
 
 __all__ = [
     "SIDE_SIGN",
-    "WHEEL_RADIUS",
     "WheelCommand",
     "direction_for_heading",
     "heading_from_direction",
