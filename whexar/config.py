@@ -70,7 +70,7 @@ AdcCounts = Annotated[int, Field(ge=0, le=1023)]
 """A 10-bit ATmega2560 ADC reading."""
 
 
-class _Section(BaseModel):
+class Section(BaseModel):
     """Base of every configuration model: strict keys, immutable values."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -83,7 +83,7 @@ class _Section(BaseModel):
 # --------------------------------------------------------------------------- robot & body
 
 
-class RobotSpec(_Section):
+class RobotSpec(Section):
     """Whole-robot constants."""
 
     name: str = "WHexaR"
@@ -95,7 +95,7 @@ class RobotSpec(_Section):
     """Gravitational acceleration used by the thesis (6.8.1)."""
 
 
-class BodySpec(_Section):
+class BodySpec(Section):
     """The body tube: an aluminium rectangular profile 60 × 10 × 6 cm (5.2)."""
 
     length_mm: Positive = 600.0
@@ -106,7 +106,7 @@ class BodySpec(_Section):
 # --------------------------------------------------------------------------- servos & joints
 
 
-class ServoModelSpec(_Section):
+class ServoModelSpec(Section):
     """One Dynamixel MX model (Table 5.1; ROBOTIS e-manual, MX (2.0) pages)."""
 
     model_number: int = Field(ge=0, le=65535)
@@ -134,7 +134,7 @@ def _default_servo_models() -> dict[ServoModelName, ServoModelSpec]:
     }
 
 
-class JointSpec(_Section):
+class JointSpec(Section):
     """One joint of every leg: its servo, range and segment (Table 5.2)."""
 
     model: ServoModelName
@@ -177,7 +177,7 @@ class JointSpec(_Section):
         return found
 
 
-class JointsSpec(_Section):
+class JointsSpec(Section):
     """The seven joints, coxa to wheel (Fig. 4.1, Table 5.2)."""
 
     coxa: JointSpec = JointSpec(model="MX-64", min_deg=-135, max_deg=135, length_mm=0)
@@ -197,7 +197,7 @@ class JointsSpec(_Section):
         return [p for name in JOINT_NAMES for p in self.by_name(name).problems(f"{at}.{name}")]
 
 
-class DHRow(_Section):
+class DHRow(Section):
     """One row of the Denavit–Hartenberg table (eq. 4.4–4.5, Table 5.3).
 
     The DH angle of the joint is ``theta_sign · q + theta_offset`` where q is
@@ -212,7 +212,7 @@ class DHRow(_Section):
     theta_sign: Literal[1, -1] = 1
 
 
-class DHSpec(_Section):
+class DHSpec(Section):
     """DH table of the five positioning joints (Table 5.3).
 
     Table 5.3 gives d, a, α and the trochanter's +π/2. The femur's +90° and the
@@ -248,7 +248,7 @@ def _default_legs() -> tuple[LegSpec, ...]:
     )
 
 
-class LegSpec(_Section):
+class LegSpec(Section):
     """One leg: where its coxa sits on the body and which servo drives each joint."""
 
     name: Literal["RF", "LF", "RM", "LM", "RR", "LR"]
@@ -306,7 +306,7 @@ def _check_legs(legs: Sequence[LegSpec], at: str) -> list[Problem]:
 # --------------------------------------------------------------------------- links
 
 
-class BusSpec(_Section):
+class BusSpec(Section):
     """The Dynamixel bus behind the U2D2 adapter (5.3.6, 6.1.1)."""
 
     port: str = Field(default="/dev/ttyUSB0", min_length=1)
@@ -328,7 +328,7 @@ class BusSpec(_Section):
         return value
 
 
-class SensorBoardSpec(_Section):
+class SensorBoardSpec(Section):
     """The ATmega2560 sensor board on its serial line (5.4, 6.1.2, 6.1.5)."""
 
     port: str = Field(default="/dev/ttyACM0", min_length=1)
@@ -352,7 +352,7 @@ class SensorBoardSpec(_Section):
         return []
 
 
-class IRSpec(_Section):
+class IRSpec(Section):
     """IR rangefinders on the front legs, calibrated by eq. 5.5 (5.3.5, Table 5.4)."""
 
     k_cm: Positive = IR_K_CM
@@ -381,7 +381,7 @@ class IRSpec(_Section):
         return found
 
 
-class FSRSpec(_Section):
+class FSRSpec(Section):
     """Force-sensitive resistors under each leg, read as raw ADC counts (5.3.3).
 
     The thesis sets the threshold from each leg's load after calibration
@@ -410,7 +410,7 @@ class FSRSpec(_Section):
 # --------------------------------------------------------------------------- gait selection
 
 
-class GaitThresholds(_Section):
+class GaitThresholds(Section):
     """Limits of one locomotion mode; beyond any of them a more stable mode is chosen.
 
     An absent ``max_obstacles`` or ``max_bumps`` means no limit (Table 5.9 "> 0",
@@ -427,7 +427,7 @@ class GaitThresholds(_Section):
     """Disappeared leg supports within the window (4.2.3, 6.7.5)."""
 
 
-class GaitSelectorSpec(_Section):
+class GaitSelectorSpec(Section):
     """Gait-selector thresholds: Table 5.9, wheel tilt raised from 7° to 20° (6.7.5)."""
 
     lost_support_window_cycles: Positive = 1.0
@@ -485,7 +485,7 @@ class GaitSelectorSpec(_Section):
 # --------------------------------------------------------------------------- stances
 
 
-class StanceSpec(_Section):
+class StanceSpec(Section):
     """A standing posture, the same for all legs up to the front/rear yaw (6.3, 6.4).
 
     ``reach_mm`` is the horizontal distance from the coxa joint to the wheel's
@@ -539,7 +539,7 @@ def _default_stances() -> dict[str, StanceSpec]:
 # --------------------------------------------------------------------------- the whole robot
 
 
-class RobotConfig(_Section):
+class RobotConfig(Section):
     """Everything physical or tunable about WHexaR. ``RobotConfig()`` is the thesis robot."""
 
     schema_version: Literal[1] = 1
@@ -591,13 +591,13 @@ def _section_problems(name: str, value: object) -> list[Problem]:
     """Relational problems inside one top-level section."""
     if name == "legs":
         return _check_legs(typing.cast(Sequence[LegSpec], value), name)
-    if isinstance(value, _Section):
+    if isinstance(value, Section):
         return value.problems(name)
     if isinstance(value, Mapping):
         return [
             p
             for key, item in value.items()
-            if isinstance(item, _Section)
+            if isinstance(item, Section)
             for p in item.problems(f"{name}.{_key(key)}")
         ]
     return []
@@ -689,9 +689,9 @@ def format_path(loc: Sequence[object]) -> str:
     return out
 
 
-def _model_at(loc: Sequence[object]) -> type[BaseModel] | None:
-    """The model class that a location inside a RobotConfig document points into."""
-    annotation: object = RobotConfig
+def _model_at(root: type[BaseModel], loc: Sequence[object]) -> type[BaseModel] | None:
+    """The model class that a location inside a ``root`` document points into."""
+    annotation: object = root
     for part in loc:
         annotation = _unwrap(annotation)
         if isinstance(annotation, type) and issubclass(annotation, BaseModel):
@@ -721,14 +721,23 @@ def _unwrap(annotation: object) -> object:
     return annotation
 
 
-def _problem_from_error(error: Mapping[str, Any]) -> Problem:
+def problem_from_error(
+    error: Mapping[str, Any],
+    root: type[BaseModel] | None = None,
+    prefix: Sequence[object] = (),
+) -> Problem:
+    """One pydantic error as a :class:`Problem`; ``root`` is the model validated.
+
+    ``prefix`` is prepended to the error's location (a nested document
+    validated on its own, such as an actor's ``params``).
+    """
     loc = tuple(error["loc"])
-    path = format_path(loc)
+    path = format_path((*prefix, *loc))
     kind = error["type"]
     if kind == "missing":
         return Problem(path, MISSING, "required key is missing")
     if kind == "extra_forbidden":
-        parent = _model_at(loc[:-1])
+        parent = _model_at(root or RobotConfig, loc[:-1])
         known = ", ".join(parent.model_fields) if parent is not None else ""
         return Problem(path, error.get("input"), f"unknown key; allowed here: {known}")
     message = str(error["msg"])
@@ -750,7 +759,7 @@ def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConf
         if found:
             raise ConfigError(source, found)
         return cfg
-    problems = [_problem_from_error(error) for error in errors]
+    problems = [problem_from_error(error) for error in errors]
     # Sections that validated on their own still get their relational checks,
     # so a bad key in one section does not hide a duplicate ID in another.
     failed = {e["loc"][0] for e in errors if e["loc"]}
@@ -775,12 +784,8 @@ def _syntax_problem(exc: tomllib.TOMLDecodeError, text: str) -> Problem:
     return Problem(f"line {line}", shown, f"valid TOML: {exc}")
 
 
-def load_config(path: str | Path) -> RobotConfig:
-    """Read and validate a TOML robot configuration.
-
-    Raises :class:`~whexar.errors.ConfigError` listing every problem: the key
-    path, the value found and what is allowed.
-    """
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Read a TOML file; a missing file or a syntax error is a :class:`ConfigError`."""
     source = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -790,10 +795,18 @@ def load_config(path: str | Path) -> RobotConfig:
             source, [Problem("(file)", source, f"a readable TOML file ({reason})")]
         ) from None
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(source, [_syntax_problem(exc, text)]) from None
-    return parse_config(data, source)
+
+
+def load_config(path: str | Path) -> RobotConfig:
+    """Read and validate a TOML robot configuration.
+
+    Raises :class:`~whexar.errors.ConfigError` listing every problem: the key
+    path, the value found and what is allowed.
+    """
+    return parse_config(read_toml(path), str(path))
 
 
 def config_schema() -> dict[str, Any]:

@@ -1,0 +1,39 @@
+"""Public test helpers: run actors on virtual time, feed them, capture, compare.
+
+Used by whexar's own tests and meant for anyone extending the runtime::
+
+    from whexar.testing import run_actors
+
+    result = run_actors(graph, duration=5.0)
+    assert result.exit_code == 0
+    beats = result.messages("beats")
+
+See :func:`run_actors`, :class:`Harness` and :class:`MessageLog`; the small
+actors in :mod:`whexar.testing.actors` (``Pulse``, ``Relay``, ``Sink``) are
+importable from the wiring as ``whexar.testing:Pulse`` and so on.
+"""
+
+from whexar.testing.actors import InjectedFailure, Pulse, Relay, Sink
+from whexar.testing.harness import (
+    HARNESS,
+    Harness,
+    LogEntry,
+    MessageLog,
+    RunResult,
+    Scenario,
+    run_actors,
+)
+
+__all__ = [
+    "HARNESS",
+    "Harness",
+    "InjectedFailure",
+    "LogEntry",
+    "MessageLog",
+    "Pulse",
+    "Relay",
+    "RunResult",
+    "Scenario",
+    "Sink",
+    "run_actors",
+]
