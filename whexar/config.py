@@ -732,16 +732,22 @@ def problem_from_error(
     validated on its own, such as an actor's ``params``).
     """
     loc = tuple(error["loc"])
+    # pydantic locates a bad dict key as (..., key, "[key]"): name the key itself.
+    key_itself = bool(loc) and loc[-1] == "[key]"
+    if key_itself:
+        loc = loc[:-1]
     path = format_path((*prefix, *loc))
     kind = error["type"]
     if kind == "missing":
         return Problem(path, MISSING, "required key is missing")
     if kind == "extra_forbidden":
         parent = _model_at(root or RobotConfig, loc[:-1])
-        known = ", ".join(parent.model_fields) if parent is not None else ""
+        fields = parent.model_fields.items() if parent is not None else ()
+        known = ", ".join(field.alias or name for name, field in fields)
         return Problem(path, error.get("input"), f"unknown key; allowed here: {known}")
-    message = str(error["msg"])
-    message = message.removeprefix("Value error, ")
+    message = str(error["msg"]).removeprefix("Value error, ")
+    if key_itself:
+        message = f"a valid key name: {message}"
     return Problem(path, error.get("input"), message)
 
 

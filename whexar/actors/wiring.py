@@ -209,6 +209,9 @@ class _Checker:
         self.types: dict[str, type[Message]] = {EVENTS_CHANNEL: Event}
         self.publishers: dict[str, list[str]] = {EVENTS_CHANNEL: [RUNTIME]}
         self.subscribers: dict[str, list[str]] = {EVENTS_CHANNEL: []}
+        # Channels named by a port that could not be wired: whether they lack
+        # a publisher is then a consequence, not a problem of its own.
+        self.doubtful: set[str] = set()
 
     def problem(self, path: Sequence[object], value: object, allowed: str) -> None:
         self.problems.append(Problem(format_path(path), value, allowed))
@@ -241,6 +244,8 @@ class _Checker:
             cls = _resolve_class(spec.class_)
         except LookupError as exc:
             self.problem((*at, "class"), spec.class_, str(exc))
+            for value in (*spec.inputs.values(), *spec.outputs.values()):
+                self.doubtful.update([value] if isinstance(value, str) else value)
             return None
         params = self.params(cls, spec, at)
         ports = cls.ports()
@@ -278,6 +283,7 @@ class _Checker:
     ) -> Input[Any] | Output[Any] | None:
         declared = ports.get(port)
         if not isinstance(declared, kind):
+            self.doubtful.add(channel)
             names = [n for n, p in ports.items() if isinstance(p, kind)]
             self.problem(
                 (*at, port),
@@ -305,6 +311,7 @@ class _Checker:
                 continue
             carried = self.types[channel]
             if not issubclass(carried, declared.message_type):
+                self.doubtful.add(channel)
                 self.problem(
                     (*at, "inputs", port),
                     channel,
@@ -351,6 +358,7 @@ class _Checker:
                     continue
                 carried = self.types[channel]
                 if not issubclass(declared.message_type, carried):
+                    self.doubtful.add(channel)
                     self.problem(
                         (*at, "outputs", port),
                         channel,
@@ -387,7 +395,7 @@ class _Checker:
                 continue
             ch = self.spec.channels[name]
             at = ("channels", name)
-            if subs and not pubs:
+            if subs and not pubs and name not in self.doubtful:
                 self.problem(
                     at,
                     ch.message,
@@ -401,7 +409,7 @@ class _Checker:
                     f"one owner for a command (backpressure) channel; {name!r} is published "
                     f"by {_names(pubs)}",
                 )
-            if not subs and not pubs:
+            if not subs and not pubs and name not in self.doubtful:
                 self.problem(at, ch.message, "a channel some actor uses; no actor wires it")
             nodes[name] = ChannelNode(
                 name,
