@@ -72,6 +72,8 @@ class _Slot:
     inboxes: dict[str, Inbox[Any]] = field(default_factory=dict)
     """One buffer per input, made once per run: a restarted actor finds its backlog."""
     actor: Actor | None = None
+    launched: bool = False
+    """Its supervisor task was started (a stop during start leaves later actors unlaunched)."""
     ready: bool = False
     stop_reported: bool = False
 
@@ -175,6 +177,7 @@ class Runtime:
                 if self._stop.is_set():
                     break
                 self._starting = slot
+                slot.launched = True
                 await tg.start(self._supervise, slot)
                 self._starting = None
             task_status.started(self)
@@ -326,8 +329,21 @@ class Runtime:
         self.emit(SafeStop(t=clock.now(), source=RUNTIME, reason=reason))
         timeout = self.settings.stop_timeout_s
         for hook in self.safe_stop_hooks:
-            with anyio.move_on_after(timeout):
-                await hook(reason)
+            try:
+                with anyio.move_on_after(timeout):
+                    await hook(reason)
+            except Exception as exc:  # one broken hook must not skip the rest of the safe stop
+                name = getattr(hook, "__qualname__", repr(hook))
+                self.emit(
+                    ActorFailed(
+                        t=clock.now(),
+                        source=RUNTIME,
+                        actor=RUNTIME,
+                        incarnation=-1,
+                        phase="safe_stop",
+                        error=f"hook {name}: {describe(exc)}",
+                    )
+                )
         for slot in reversed(self._slots):
             actor = slot.actor
             if actor is None or not slot.ready:
@@ -350,8 +366,8 @@ class Runtime:
     async def _stop_all(self) -> None:
         clock = self.clock
         for slot in reversed(self._slots):
-            if slot.done.is_set():
-                continue
+            if not slot.launched or slot.done.is_set():
+                continue  # never started, or already ended: nothing to wait for
             slot.scope.cancel()
             with anyio.move_on_after(self.settings.stop_timeout_s):
                 await slot.done.wait()

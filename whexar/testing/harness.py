@@ -30,6 +30,7 @@ from whexar.actors.clock import run as run_loop
 from whexar.actors.messages import Event, Message
 from whexar.actors.runtime import Runtime
 from whexar.actors.wiring import EVENTS_CHANNEL, Graph, GraphSpec, build_graph
+from whexar.errors import UsageError
 
 M = TypeVar("M", bound=Message)
 
@@ -76,7 +77,11 @@ class MessageLog:
             if (channel is None or e.channel == channel) and isinstance(e.message, of)
         ]
 
-    def events(self, of: type[M] = Event) -> list[M]:  # type: ignore[assignment]
+    @overload
+    def events(self) -> list[Event]: ...
+    @overload
+    def events(self, of: type[M]) -> list[M]: ...
+    def events(self, of: type[Message] = Event) -> list[Any]:
         """Runtime events of type ``of``, in order."""
         return self.messages(EVENTS_CHANNEL, of=of)
 
@@ -164,11 +169,19 @@ class RunResult:
         """The log's SHA-256 (see :meth:`MessageLog.digest`)."""
         return self.log.digest()
 
-    def events(self, of: type[M] = Event) -> list[M]:  # type: ignore[assignment]
+    @overload
+    def events(self) -> list[Event]: ...
+    @overload
+    def events(self, of: type[M]) -> list[M]: ...
+    def events(self, of: type[Message] = Event) -> list[Any]:
         """Runtime events of type ``of``, in order."""
         return self.log.events(of)
 
-    def messages(self, channel: str | None = None, *, of: type[M] = Message) -> list[M]:  # type: ignore[assignment]
+    @overload
+    def messages(self, channel: str | None = None) -> list[Message]: ...
+    @overload
+    def messages(self, channel: str | None = None, *, of: type[M]) -> list[M]: ...
+    def messages(self, channel: str | None = None, *, of: type[Message] = Message) -> list[Any]:
         """Messages published on ``channel`` of type ``of``."""
         return self.log.messages(channel, of=of)
 
@@ -195,24 +208,27 @@ def run_actors(
     """Run ``graph`` (on virtual time by default) and return everything it published.
 
     The run ends after ``duration`` seconds of runtime time; with no
-    duration, when ``scenario`` returns. ``feeds`` names the channels the
-    scenario publishes on. An exception in the scenario (a failed assert)
-    propagates unwrapped.
+    duration, when ``scenario`` returns. A scenario still running when the
+    run ends (its duration is over, an actor was escalated) is cancelled.
+    ``feeds`` names the channels the scenario publishes on. An exception in
+    the scenario (a failed assert) propagates unwrapped.
     """
     if not isinstance(graph, Graph):
         graph = build_graph(graph, external=dict.fromkeys(feeds, HARNESS))
     if duration is None and scenario is None:
-        raise ValueError("run_actors needs a duration, a scenario, or both")
+        raise UsageError("run_actors needs a duration, a scenario, or both")
     built: Graph = graph
     log = MessageLog()
     runtime = Runtime(built, observer=log, handle_signals=handle_signals)
     codes: list[int] = []
 
-    async def _run(*, task_status: TaskStatus[Runtime]) -> None:
-        codes.append(await runtime.run(duration=duration, task_status=task_status))
-
     async def main() -> float:
         async with anyio.create_task_group() as tg:
+
+            async def _run(*, task_status: TaskStatus[Runtime]) -> None:
+                codes.append(await runtime.run(duration=duration, task_status=task_status))
+                tg.cancel_scope.cancel()  # the run is over: so is a scenario still waiting
+
             await tg.start(_run)
             if scenario is not None:
                 await scenario(Harness(runtime, log))
