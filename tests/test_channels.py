@@ -1,0 +1,300 @@
+"""Channels: the three overflow policies, per-subscriber buffers, inboxes and outboxes."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import anyio
+import pytest
+from anyio import WouldBlock
+
+from whexar.actors.channels import (
+    DEFAULT_CAPACITY,
+    Channel,
+    Inbox,
+    Outbox,
+    Policy,
+    capacity_or_default,
+)
+from whexar.actors.clock import Clock, run
+from whexar.actors.messages import Heartbeat, Message, TickOverrun
+from whexar.testing import run_actors
+
+
+def beat(seq: int, t: float = 0.0) -> Heartbeat:
+    return Heartbeat(t=t, source="test", seq=seq)
+
+
+def seqs(messages: list[Heartbeat]) -> list[int]:
+    return [m.seq for m in messages]
+
+
+# --------------------------------------------------------------------------- unit level
+
+
+def test_latest_keeps_the_newest_values_and_counts_drops() -> None:
+    ch = Channel("pos", Heartbeat, Policy.LATEST, 1)
+    inbox = Inbox("pos", ch.subscribe("reader"))
+    for i in range(5):
+        ch.send_nowait(beat(i))
+    assert seqs(inbox.drain()) == [4]
+    stats = ch.stats()
+    assert (stats.published, stats.dropped, stats.buffered) == (5, {"reader": 4}, {"reader": 0})
+
+    wide = Channel("pos2", Heartbeat, Policy.LATEST, 3)
+    inbox2 = Inbox("pos2", wide.subscribe("reader"))
+    for i in range(5):
+        wide.send_nowait(beat(i))
+    assert seqs(inbox2.drain()) == [2, 3, 4]  # the oldest ones made room
+    assert wide.stats().dropped == {"reader": 2}
+
+
+def test_queue_drops_the_newest_and_never_blocks() -> None:
+    ch = Channel("log", Heartbeat, Policy.QUEUE, 2)
+    inbox = Inbox("log", ch.subscribe("reader"))
+
+    async def main() -> None:
+        for i in range(4):
+            await ch.send(beat(i))  # full buffer: returns at once, message dropped
+
+    run(main, virtual=True, deadlock_after_s=1.0)
+    assert seqs(inbox.drain()) == [0, 1]
+    assert ch.stats().dropped == {"reader": 2}
+    assert ch.published == 4
+
+
+def test_backpressure_send_nowait_refuses_a_full_buffer_for_everyone() -> None:
+    observed: list[tuple[str, Message]] = []
+    ch = Channel(
+        "cmd",
+        Heartbeat,
+        Policy.BACKPRESSURE,
+        1,
+        observer=lambda name, msg: observed.append((name, msg)),
+    )
+    fast = Inbox("cmd", ch.subscribe("fast"))
+    slow = Inbox("cmd", ch.subscribe("slow"))
+    ch.send_nowait(beat(0))
+    assert seqs(fast.drain()) == [0]
+    with pytest.raises(WouldBlock):
+        ch.send_nowait(beat(1))  # "slow" is still full
+    # The refused message reached nobody, and was neither logged nor counted.
+    assert fast.drain() == []
+    assert seqs(slow.drain()) == [0]
+    assert observed == [("cmd", beat(0))]
+    stats = ch.stats()
+    assert (stats.published, stats.dropped) == (1, {"fast": 0, "slow": 0})
+
+
+def test_backpressure_send_waits_for_room_and_loses_nothing() -> None:
+    ch = Channel("cmd", Heartbeat, Policy.BACKPRESSURE, 2)
+    inbox = Inbox("cmd", ch.subscribe("reader"))
+
+    async def main() -> tuple[list[tuple[int, float]], list[int]]:
+        clock = Clock()
+        sent: list[tuple[int, float]] = []
+        got: list[int] = []
+
+        async def publisher() -> None:
+            for i in range(5):
+                await ch.send(beat(i))
+                sent.append((i, clock.now()))
+
+        async def reader() -> None:
+            await clock.sleep_until(1.0)
+            for _ in range(5):
+                got.append((await inbox.receive()).seq)
+                await clock.sleep(0.5)
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(publisher)
+            tg.start_soon(reader)
+        return sent, got
+
+    sent, got = run(main, virtual=True, deadlock_after_s=1.0)
+    assert got == [0, 1, 2, 3, 4]
+    # Two fit at once; each further send waits until the reader has taken one.
+    assert sent == [(0, 0.0), (1, 0.0), (2, 1.0), (3, 1.5), (4, 2.0)]
+    assert ch.stats().dropped == {"reader": 0}
+
+
+def test_each_subscriber_has_its_own_buffer() -> None:
+    ch = Channel("state", Heartbeat, Policy.QUEUE, 2)
+    quick = Inbox("state", ch.subscribe("quick"))
+    lazy = Inbox("state", ch.subscribe("lazy"))
+    for i in range(3):
+        ch.send_nowait(beat(i))
+        assert quick.receive_nowait().seq == i
+    assert seqs(lazy.drain()) == [0, 1]
+    assert ch.stats().dropped == {"quick": 0, "lazy": 1}
+
+
+def test_observer_sees_every_publish_with_the_channel_name() -> None:
+    observed: list[tuple[str, Message]] = []
+    ch = Channel(
+        "x", Heartbeat, Policy.QUEUE, 1, observer=lambda name, msg: observed.append((name, msg))
+    )
+    ch.subscribe("reader")
+    ch.send_nowait(beat(0))
+    ch.send_nowait(beat(1))  # dropped for the reader, but it was published
+    assert observed == [("x", beat(0)), ("x", beat(1))]
+
+
+def test_inbox_latest_drain_and_receive_nowait() -> None:
+    ch = Channel("q", Heartbeat, Policy.QUEUE, 8)
+    inbox = Inbox("q", ch.subscribe("reader"))
+    with pytest.raises(WouldBlock):
+        inbox.receive_nowait()
+    assert inbox.latest() is None
+    for i in range(4):
+        ch.send_nowait(beat(i))
+    assert inbox.receive_nowait().seq == 0
+    latest = inbox.latest()
+    assert latest is not None
+    assert latest.seq == 3
+    assert inbox.drain() == []  # latest() consumed the older ones
+
+
+def test_an_unwired_inbox_is_empty_and_waits_forever() -> None:
+    inbox: Inbox[Heartbeat] = Inbox(None, None)
+    assert inbox.channel is None
+    assert inbox.drain() == []
+    assert inbox.latest() is None
+    with pytest.raises(WouldBlock):
+        inbox.receive_nowait()
+
+    async def main() -> tuple[bool, float]:
+        clock = Clock()
+        with anyio.move_on_after(3.0) as scope:
+            await inbox.receive()
+        return scope.cancelled_caught, clock.now()
+
+    assert run(main, virtual=True, deadlock_after_s=1.0) == (True, 3.0)
+
+
+def test_inbox_iterates_asynchronously() -> None:
+    ch = Channel("q", Heartbeat, Policy.QUEUE, 8)
+    inbox = Inbox("q", ch.subscribe("reader"))
+    for i in range(3):
+        ch.send_nowait(beat(i))
+
+    async def main() -> list[int]:
+        got: list[int] = []
+        async for msg in inbox:
+            got.append(msg.seq)
+            if len(got) == 3:
+                break
+        return got
+
+    assert run(main, virtual=True, deadlock_after_s=1.0) == [0, 1, 2]
+
+
+def test_outbox_publishes_on_every_channel_and_an_empty_one_on_none() -> None:
+    a = Channel("a", Heartbeat, Policy.QUEUE, 4)
+    b = Channel("b", Heartbeat, Policy.QUEUE, 4)
+    in_a = Inbox("a", a.subscribe("r"))
+    in_b = Inbox("b", b.subscribe("r"))
+    out = Outbox((a, b))
+
+    async def main() -> None:
+        await out.send(beat(1))
+        out.send_nowait(beat(2))
+        empty: Outbox[Heartbeat] = Outbox(())
+        await empty.send(beat(3))
+        empty.send_nowait(beat(4))
+
+    run(main, virtual=True, deadlock_after_s=1.0)
+    assert seqs(in_a.drain()) == [1, 2]
+    assert seqs(in_b.drain()) == [1, 2]
+
+
+def test_default_capacities() -> None:
+    assert capacity_or_default(Policy.LATEST, None) == DEFAULT_CAPACITY[Policy.LATEST] == 1
+    assert capacity_or_default(Policy.BACKPRESSURE, None) == 16
+    assert capacity_or_default(Policy.QUEUE, None) == 256
+    assert capacity_or_default(Policy.QUEUE, 7) == 7
+
+
+# --------------------------------------------------------------------------- in a running graph
+
+
+def pulse_into_sink(
+    policy: str, capacity: int, *, pulse: dict[str, Any], sink: dict[str, Any]
+) -> dict[str, Any]:
+    return {
+        "actors": [
+            {
+                "name": "pulse",
+                "class": "whexar.testing:Pulse",
+                "params": pulse,
+                "outputs": {"out": "beats"},
+            },
+            {
+                "name": "sink",
+                "class": "whexar.testing:Sink",
+                "params": sink,
+                "inputs": {"inp": "beats"},
+                "outputs": {"seen": "seen"},
+            },
+        ],
+        "channels": {
+            "beats": {"message": "Heartbeat", "policy": policy, "capacity": capacity},
+            "seen": {"message": "Message", "policy": "queue"},
+        },
+    }
+
+
+# Eight beats, one every 0.125 s from t = 0; the sink starts reading at 0.5 s and
+# takes 0.25 s per message (all times binary fractions, so exact).
+PULSE = {"period_s": 0.125, "count": 8}
+SLOW_SINK = {"start_s": 0.5, "delay_s": 0.25}
+
+
+def test_graph_latest_subscriber_sees_only_the_newest() -> None:
+    result = run_actors(pulse_into_sink("latest", 1, pulse=PULSE, sink=SLOW_SINK), duration=3.0)
+    published = result.messages("beats", of=Heartbeat)
+    seen = result.messages("seen", of=Heartbeat)
+    assert seqs(published) == list(range(8))
+    # At 0.5 the newest is beat 3 (beat 4 is made in the same instant, after the read);
+    # each later read takes whatever is newest then.
+    assert seqs(seen) == [3, 5, 7]
+    stats = result.stats["beats"]
+    assert stats.published == 8
+    assert stats.dropped == {"sink": 8 - len(seen)}
+    assert stats.buffered == {"sink": 0}
+
+
+def test_graph_queue_drops_the_newest_and_the_publisher_keeps_its_pace() -> None:
+    result = run_actors(pulse_into_sink("queue", 3, pulse=PULSE, sink=SLOW_SINK), duration=3.0)
+    published = result.messages("beats", of=Heartbeat)
+    seen = result.messages("seen", of=Heartbeat)
+    # The publisher never waited: every beat on its own grid point, no overrun.
+    assert [(m.seq, m.t) for m in published] == [(k, k * 0.125) for k in range(8)]
+    assert result.events(TickOverrun) == []
+    # The first three were buffered; later ones got in only when there was room.
+    assert seqs(seen) == [0, 1, 2, 4, 6]
+    assert result.stats["beats"].dropped == {"sink": 3}
+    assert len(seen) + result.stats["beats"].dropped["sink"] == 8
+
+
+def test_graph_backpressure_loses_nothing_and_slows_the_publisher() -> None:
+    result = run_actors(
+        pulse_into_sink("backpressure", 2, pulse={**PULSE, "burst": 2}, sink=SLOW_SINK),
+        duration=6.0,
+    )
+    published = result.messages("beats", of=Heartbeat)
+    seen = result.messages("seen", of=Heartbeat)
+    assert seqs(seen) == seqs(published) == list(range(len(published)))
+    assert result.stats["beats"].dropped == {"sink": 0}
+    # Two beats fit the buffer at t = 0; cycle 1's second beat waits for the sink's
+    # first read (0.5) and its second (0.75): the pulse overran and skipped ahead.
+    assert [(m.seq, m.t) for m in published] == [
+        (0, 0.0),
+        (1, 0.0),
+        (2, 0.125),
+        (3, 0.125),
+        (4, 0.75),
+        (5, 0.75),
+    ]
+    overruns = [(o.actor, o.cycle, o.elapsed_s, o.skipped) for o in result.events(TickOverrun)]
+    assert overruns == [("pulse", 1, 0.625, 4), ("pulse", 6, 0.5, 3)]
