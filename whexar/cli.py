@@ -2,7 +2,7 @@
 
 Exit codes: 0 success; 1 a configuration with problems, or a benchmark that
 missed its target; 2 bad input (an unknown leg, an unreachable target, a
-malformed option).
+malformed option); 3 ``whexar run`` stopped after an actor was escalated.
 """
 
 from __future__ import annotations
@@ -18,10 +18,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from whexar import __version__
+from whexar.actors.messages import Message
+from whexar.actors.wiring import EVENTS_CHANNEL
 from whexar.errors import ConfigError, UsageError
 from whexar.robot import LEG_NAMES, POSITIONING_JOINTS, leg_index
 
 if TYPE_CHECKING:
+    from whexar.bench import Report
     from whexar.kinematics.geometry import LegGeometry
 
 Handler = Callable[[argparse.Namespace], int]
@@ -66,6 +69,16 @@ def _config_schema(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------- kinematics
+
+
+def _seconds(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not math.isfinite(number) or number <= 0:
+        raise argparse.ArgumentTypeError(f"{value!r}: expected a number of seconds > 0")
+    return number
 
 
 def _leg(value: str) -> int:
@@ -176,13 +189,53 @@ def _kin_gait(args: argparse.Namespace) -> int:
     return 0
 
 
+# --------------------------------------------------------------------------- runtime
+
+
+def _event_line(channel: str, msg: Message) -> None:
+    if channel != EVENTS_CHANNEL:
+        return
+    fields = ", ".join(
+        f"{name}={getattr(msg, name)!r}"
+        for name in msg.__dataclass_fields__
+        if name not in ("t", "source")
+    )
+    print(f"{msg.t:10.3f}  {type(msg).__name__:<15} {fields}", flush=True)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from whexar.actors.clock import run as run_loop
+    from whexar.actors.runtime import Runtime
+    from whexar.actors.wiring import load_graph
+
+    graph = load_graph(args.graph)
+    runtime = Runtime(graph, handle_signals=True, observer=None if args.quiet else _event_line)
+
+    async def main() -> int:
+        return await runtime.run(duration=args.duration)
+
+    code = run_loop(main, virtual=args.virtual)
+    print(f"stopped: {runtime.stop_reason}", flush=True)
+    if not args.quiet:
+        for stats in runtime.stats():
+            dropped = ", ".join(f"{k} {v}" for k, v in stats.dropped.items() if v)
+            print(
+                f"channel {stats.channel}: {stats.published} published"
+                + (f", dropped for {dropped}" if dropped else ""),
+                flush=True,
+            )
+    return code
+
+
 # --------------------------------------------------------------------------- benchmarks
 
 
-def _bench_kin(args: argparse.Namespace) -> int:
-    from whexar.bench.kin import run
+def _bench(args: argparse.Namespace) -> int:
+    """Run the suite ``args.bench_command`` (a module of :mod:`whexar.bench`)."""
+    import importlib
 
-    report = run(progress=None if args.json else print)
+    suite = importlib.import_module(f"whexar.bench.{args.bench_command}")
+    report: Report = suite.run(progress=None if args.json else print)
     if args.json:
         _print_json(report.figures)
     else:
@@ -281,7 +334,30 @@ def build_parser() -> argparse.ArgumentParser:
     bench_cmds = bench.add_subparsers(dest="bench_command", required=True, metavar="SUITE")
     bench_kin = bench_cmds.add_parser("kin", help="inverse kinematics speed")
     bench_kin.add_argument("--json", action="store_true", help="print the medians as JSON")
-    bench_kin.set_defaults(handler=_bench_kin)
+    bench_kin.set_defaults(handler=_bench)
+    bench_runtime = bench_cmds.add_parser("runtime", help="message passing and virtual time")
+    bench_runtime.add_argument("--json", action="store_true", help="print the medians as JSON")
+    bench_runtime.set_defaults(handler=_bench)
+
+    run_cmd = commands.add_parser(
+        "run",
+        help="run an actor graph until SIGINT/SIGTERM (or --duration)",
+        description="Start the actors of a wiring file in order, supervise them, and stop "
+        "them in reverse order on SIGINT/SIGTERM or after --duration. Prints every runtime "
+        "event. Exit status 0 after a clean stop, 3 after an escalation, 1 if the wiring "
+        "has problems.",
+    )
+    run_cmd.add_argument("graph", type=Path, help="wiring file, e.g. config/graphs/demo.toml")
+    run_cmd.add_argument(
+        "--duration", type=_seconds, default=None, help="stop after this many seconds"
+    )
+    run_cmd.add_argument(
+        "--virtual",
+        action="store_true",
+        help="run on virtual time (idle time is skipped); give --duration",
+    )
+    run_cmd.add_argument("--quiet", action="store_true", help="do not print runtime events")
+    run_cmd.set_defaults(handler=_run)
     return parser
 
 

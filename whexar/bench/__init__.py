@@ -27,18 +27,19 @@ def median_seconds(fn: Callable[[], object], repeats: int, *, warmup: int = 20) 
 
 @dataclass(frozen=True)
 class Figure:
-    """One measured figure next to its target (``target`` is an upper bound)."""
+    """One measured figure next to its target: an upper bound, or a lower one if ``at_least``."""
 
     key: str
     label: str
     value: float
     unit: str
     target: float
+    at_least: bool = False
 
     @property
     def passed(self) -> bool:
         """True when the measured value meets the target."""
-        return self.value <= self.target
+        return self.value >= self.target if self.at_least else self.value <= self.target
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,8 @@ class Report:
 
     suite: str
     items: list[Figure] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    """Lines printed under the table: context, comparisons, how the figures were taken."""
 
     @property
     def figures(self) -> dict[str, float]:
@@ -63,8 +66,10 @@ class Report:
         lines = [f"whexar bench {self.suite}"]
         for f in self.items:
             verdict = "ok" if f.passed else "MISSED"
+            bound = ">=" if f.at_least else "<="
             lines.append(
-                f"  {f.label:<44}{f.value:10.3f} {f.unit:<3} (target <= {f.target:g} {f.unit})"
+                f"  {f.label:<44}{f.value:12.3f} {f.unit:<5} (target {bound} {f.target:g} {f.unit})"
                 f"  {verdict}"
             )
+        lines.extend(f"  {note}" for note in self.notes)
         return "\n".join(lines)
