@@ -91,6 +91,17 @@ class Stubborn(Actor):
                 await self.clock.sleep(2.0)
 
 
+class FailsOnStop(Actor):
+    """Ready at once; its cleanup raises when it is stopped."""
+
+    async def run(self) -> None:
+        self.ready()
+        try:
+            await anyio.sleep_forever()
+        finally:
+            raise OSError("port already gone")
+
+
 def here(cls: type[Actor]) -> str:
     """The wiring path of an actor class defined in this module."""
     return f"{__name__}:{cls.__name__}"
@@ -494,6 +505,7 @@ def test_a_cleanup_longer_than_the_stop_timeout_is_cut_short() -> None:
         duration=1.0,
     )
     assert stopped(result) == [("c", "stop", 1.0), ("b", "stop", 1.5), ("a", "stop", 1.5)]
+    assert [e.timed_out for e in result.events(ActorStopped)] == [False, True, False]
     assert result.end_time == 1.5
 
 
@@ -505,6 +517,23 @@ def test_an_actor_overrunning_its_stop_timeout_is_reported_and_passed_over() -> 
     events = [(e.actor, e.t, e.timed_out) for e in result.events(ActorStopped)]
     # Reported once, at the timeout; "a" is stopped then, without waiting for it.
     assert events == [("c", 1.0, False), ("stubborn", 1.5, True), ("a", 1.5, False)]
+
+
+def test_a_failure_while_stopping_is_reported_but_neither_restarted_nor_escalated() -> None:
+    result = run_actors(
+        graph(
+            actor("a"),
+            actor("brittle", here(FailsOnStop)),
+            restart={"max_restarts": 0, "window_s": 10.0},
+        ),
+        duration=1.0,
+    )
+    assert result.exit_code == EXIT_CLEAN
+    (failed,) = result.events(ActorFailed)
+    assert (failed.actor, failed.t, failed.error) == ("brittle", 1.0, "OSError: port already gone")
+    assert result.events(ActorRestarted) == []
+    assert result.events(ActorEscalated) == []
+    assert stopped(result) == [("brittle", "stop", 1.0), ("a", "stop", 1.0)]
 
 
 # --------------------------------------------------------------------------- determinism

@@ -37,7 +37,8 @@ The wiring configuration connects each port to a channel by name; reading
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, ClassVar, Generic, TypeVar, overload
 
@@ -134,6 +135,8 @@ class Actor:
         self.name = ctx.name
         self.clock = ctx.clock
         self.params = ctx.params
+        self.cut_short = False
+        """Set when cleanup under :meth:`shielded` overran the stop timeout."""
 
     @classmethod
     def ports(cls) -> dict[str, Input[Any] | Output[Any]]:
@@ -177,6 +180,16 @@ class Actor:
         """A deadline ticker on the runtime clock whose overruns go to the event stream."""
         return Ticker(self.clock, period_s, actor=self.name, emit=self._ctx.emit, start=start)
 
-    def shielded(self) -> CancelScope:
-        """A shielded scope for cleanup after cancellation, bounded by the stop timeout."""
-        return CancelScope(shield=True, deadline=self.clock.deadline(self._ctx.stop_timeout_s))
+    @contextmanager
+    def shielded(self) -> Iterator[CancelScope]:
+        """A shielded scope for cleanup after cancellation, bounded by the stop timeout.
+
+        Cleanup cut off at the bound is reported: the actor's ``ActorStopped``
+        event says ``timed_out=True``.
+        """
+        with CancelScope(
+            shield=True, deadline=self.clock.deadline(self._ctx.stop_timeout_s)
+        ) as scope:
+            yield scope
+        if scope.cancelled_caught:
+            self.cut_short = True

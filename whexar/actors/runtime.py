@@ -75,7 +75,11 @@ class _Slot:
     launched: bool = False
     """Its supervisor task was started (a stop during start leaves later actors unlaunched)."""
     ready: bool = False
+    reported: bool = False
+    """Its first incarnation reported ready (the start loop has gone on)."""
     stop_reported: bool = False
+    cut_short: bool = False
+    """Its last cleanup overran the stop timeout and was cut off."""
 
 
 def describe(exc: BaseException) -> str:
@@ -132,6 +136,11 @@ class Runtime:
     def emit(self, event: Event) -> None:
         """Put ``event`` on the ``events`` channel; never waits (overflow is counted)."""
         self.channels[EVENTS_CHANNEL].send_nowait(event)
+
+    @property
+    def stopping(self) -> bool:
+        """True once a stop was requested."""
+        return self._stop is not None and self._stop.is_set()
 
     def request_stop(self, reason: str) -> None:
         """Ask the runtime to stop; the first reason given is kept."""
@@ -220,88 +229,24 @@ class Runtime:
         policy = node.restart
         clock = self.clock
         failures: deque[float] = deque()
-        reported = False
         reason = "stop"
         try:
             with slot.scope:
                 incarnation = 0
                 while True:
-                    ready_scope = CancelScope(
-                        deadline=clock.deadline(self.settings.ready_timeout_s)
-                    )
-                    is_ready = False
-
-                    def on_ready(n: int = incarnation, scope: CancelScope = ready_scope) -> None:
-                        nonlocal is_ready, reported
-                        if is_ready:
-                            return
-                        is_ready = True
-                        scope.deadline = math.inf
-                        slot.ready = True
-                        self.emit(
-                            ActorReady(
-                                t=clock.now(), source=RUNTIME, actor=node.name, incarnation=n
-                            )
-                        )
-                        if not reported:
-                            reported = True
-                            self.started.append(node.name)
-                            task_status.started()
-
-                    self.emit(
-                        ActorStarting(
-                            t=clock.now(), source=RUNTIME, actor=node.name, incarnation=incarnation
-                        )
-                    )
-                    ctx = self._context(slot, on_ready)
-                    error: str
-                    try:
-                        slot.actor = node.cls(ctx)
-                        with ready_scope:
-                            await slot.actor.run()
-                    except Exception as exc:
-                        error = describe(exc)
-                    else:
-                        if ready_scope.cancelled_caught:
-                            error = f"did not report ready within {self.settings.ready_timeout_s} s"
-                        elif not is_ready:
-                            error = "run() returned before reporting ready"
-                        else:
-                            reason = "returned"
-                            break
-                    finally:
-                        slot.actor = None
-                        slot.ready = False
+                    error = await self._incarnate(slot, incarnation, task_status)
+                    if error is None:
+                        reason = "returned"
+                        break
+                    if self.stopping:
+                        break  # a failure while stopping is reported, never restarted
                     now = clock.now()
-                    self.emit(
-                        ActorFailed(
-                            t=now,
-                            source=RUNTIME,
-                            actor=node.name,
-                            incarnation=incarnation,
-                            phase="run" if is_ready else "start",
-                            error=error,
-                        )
-                    )
                     failures.append(now)
-                    while failures and failures[0] < now - policy.window_s:
+                    while failures[0] < now - policy.window_s:
                         failures.popleft()
                     if len(failures) > policy.max_restarts:
                         reason = "escalated"
-                        self.emit(
-                            ActorEscalated(
-                                t=now,
-                                source=RUNTIME,
-                                actor=node.name,
-                                failures=len(failures),
-                                window_s=policy.window_s,
-                            )
-                        )
-                        self.escalated = True
-                        self.request_stop(
-                            f"escalation: actor {node.name!r} failed {len(failures)} times "
-                            f"within {policy.window_s:g} s (last: {error})"
-                        )
+                        self._escalate(node, len(failures), error)
                         break
                     await clock.sleep(policy.delay_s)
                     incarnation += 1
@@ -315,14 +260,94 @@ class Runtime:
                         )
                     )
         finally:
-            if not reported:
-                task_status.started()
+            if not slot.reported:
+                task_status.started()  # let the start loop go on (to stop)
             if not slot.stop_reported:
                 slot.stop_reported = True
                 self.emit(
-                    ActorStopped(t=clock.now(), source=RUNTIME, actor=node.name, reason=reason)
+                    ActorStopped(
+                        t=clock.now(),
+                        source=RUNTIME,
+                        actor=node.name,
+                        reason=reason,
+                        timed_out=slot.cut_short,
+                    )
                 )
             slot.done.set()
+
+    async def _incarnate(
+        self, slot: _Slot, incarnation: int, task_status: TaskStatus[None]
+    ) -> str | None:
+        """Run one fresh instance; ``None`` if it returned after ready, else what went wrong."""
+        node = slot.node
+        clock = self.clock
+        ready_scope = CancelScope(deadline=clock.deadline(self.settings.ready_timeout_s))
+        is_ready = False
+
+        def on_ready() -> None:
+            nonlocal is_ready
+            if is_ready:
+                return
+            is_ready = slot.ready = True
+            ready_scope.deadline = math.inf
+            self.emit(
+                ActorReady(t=clock.now(), source=RUNTIME, actor=node.name, incarnation=incarnation)
+            )
+            if not slot.reported:
+                slot.reported = True
+                self.started.append(node.name)
+                task_status.started()
+
+        self.emit(
+            ActorStarting(t=clock.now(), source=RUNTIME, actor=node.name, incarnation=incarnation)
+        )
+        actor = node.cls(self._context(slot, on_ready))
+        slot.actor = actor
+        error: str
+        try:
+            with ready_scope:
+                await actor.run()
+        except Exception as exc:
+            error = describe(exc)
+        else:
+            if ready_scope.cancelled_caught:
+                error = f"did not report ready within {self.settings.ready_timeout_s} s"
+            elif not is_ready:
+                error = "run() returned before reporting ready"
+            else:
+                return None
+        finally:
+            slot.actor = None
+            slot.ready = False
+            slot.cut_short = actor.cut_short
+        self.emit(
+            ActorFailed(
+                t=clock.now(),
+                source=RUNTIME,
+                actor=node.name,
+                incarnation=incarnation,
+                phase="run" if is_ready else "start",
+                error=error,
+            )
+        )
+        return error
+
+    def _escalate(self, node: ActorNode, failures: int, error: str) -> None:
+        window = node.restart.window_s
+        self.emit(
+            ActorEscalated(
+                t=self.clock.now(),
+                source=RUNTIME,
+                actor=node.name,
+                failures=failures,
+                window_s=window,
+            )
+        )
+        self.escalated = True
+        self.request_stop(
+            f"escalation: actor {node.name!r} failed {failures} times "
+            f"within {window:g} s (last: {error})"
+        )
 
     async def _safe_stop(self, reason: str) -> None:
         clock = self.clock
