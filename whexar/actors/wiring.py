@@ -273,14 +273,15 @@ class _Checker:
                 self.problems.append(problem)
             return None
 
-    def _port(
+    def _link(
         self,
         ports: Mapping[str, Input[Any] | Output[Any]],
         kind: type[Input[Any]] | type[Output[Any]],
         port: str,
         channel: str,
         at: tuple[object, ...],
-    ) -> Input[Any] | Output[Any] | None:
+    ) -> bool:
+        """Check one port → channel link: the port exists, the channel too, the types fit."""
         declared = ports.get(port)
         if not isinstance(declared, kind):
             self.doubtful.add(channel)
@@ -290,13 +291,48 @@ class _Checker:
                 channel,
                 f"a port of the class; its {kind.__name__.lower()}s: {', '.join(names) or 'none'}",
             )
-            return None
+            return False
         if channel not in self.types:
             if channel not in self.spec.channels:  # an unknown name, not a bad message type
                 known = ", ".join(sorted({EVENTS_CHANNEL, *self.spec.channels}))
                 self.problem((*at, port), channel, f"a declared channel ({known})")
-            return None
-        return declared
+            return False
+        carried = self.types[channel]
+        wanted = declared.message_type
+        # An input takes the channel's type or a subclass; an output may send a subclass.
+        fits = issubclass(carried, wanted) if kind is Input else issubclass(wanted, carried)
+        if not fits:
+            self.doubtful.add(channel)
+            self.problem(
+                (*at, port),
+                channel,
+                f"a channel of {wanted.__name__}; channel {channel!r} carries {carried.__name__}",
+            )
+        return fits
+
+    def _unwired(
+        self,
+        spec: ActorSpec,
+        ports: Mapping[str, Input[Any] | Output[Any]],
+        kind: type[Input[Any]] | type[Output[Any]],
+        wired: Mapping[str, object],
+        at: tuple[object, ...],
+    ) -> list[str]:
+        """The optional ports of ``kind`` not in ``wired``; a required one is a problem."""
+        optional = []
+        for port, declared in ports.items():
+            if not isinstance(declared, kind) or port in wired:
+                continue
+            if declared.optional:
+                optional.append(port)
+            else:
+                self.problem(
+                    (*at, port),
+                    None,
+                    f"a channel of {declared.message_type.__name__}: {kind.__name__.lower()} "
+                    f"{port!r} of actor {spec.name!r} is required but not wired",
+                )
+        return optional
 
     def inputs(
         self,
@@ -306,32 +342,11 @@ class _Checker:
     ) -> dict[str, str | None]:
         wired: dict[str, str | None] = {}
         for port, channel in spec.inputs.items():
-            declared = self._port(ports, Input, port, channel, (*at, "inputs"))
-            if declared is None:
-                continue
-            carried = self.types[channel]
-            if not issubclass(carried, declared.message_type):
-                self.doubtful.add(channel)
-                self.problem(
-                    (*at, "inputs", port),
-                    channel,
-                    f"a channel of {declared.message_type.__name__}; "
-                    f"channel {channel!r} carries {carried.__name__}",
-                )
-                continue
-            wired[port] = channel
-            self.subscribers[channel].append(spec.name)
-        for port, declared in ports.items():
-            if isinstance(declared, Input) and port not in spec.inputs:
-                if declared.optional:
-                    wired[port] = None
-                else:
-                    self.problem(
-                        (*at, "inputs", port),
-                        None,
-                        f"a channel of {declared.message_type.__name__}: input {port!r} of "
-                        f"actor {spec.name!r} is required but not wired",
-                    )
+            if self._link(ports, Input, port, channel, (*at, "inputs")):
+                wired[port] = channel
+                self.subscribers[channel].append(spec.name)
+        for port in self._unwired(spec, ports, Input, spec.inputs, (*at, "inputs")):
+            wired[port] = None
         return wired
 
     def outputs(
@@ -342,9 +357,8 @@ class _Checker:
     ) -> dict[str, tuple[str, ...]]:
         wired: dict[str, tuple[str, ...]] = {}
         for port, value in spec.outputs.items():
-            channels = [value] if isinstance(value, str) else value
             good: list[str] = []
-            for channel in channels:
+            for channel in [value] if isinstance(value, str) else value:
                 if channel == EVENTS_CHANNEL:
                     self.problem(
                         (*at, "outputs", port),
@@ -352,34 +366,12 @@ class _Checker:
                         "a channel other than 'events' "
                         "(only the runtime publishes there; actors call emit())",
                     )
-                    continue
-                declared = self._port(ports, Output, port, channel, (*at, "outputs"))
-                if declared is None:
-                    continue
-                carried = self.types[channel]
-                if not issubclass(declared.message_type, carried):
-                    self.doubtful.add(channel)
-                    self.problem(
-                        (*at, "outputs", port),
-                        channel,
-                        f"a channel of {declared.message_type.__name__}; "
-                        f"channel {channel!r} carries {carried.__name__}",
-                    )
-                    continue
-                good.append(channel)
-                self.publishers[channel].append(spec.name)
+                elif self._link(ports, Output, port, channel, (*at, "outputs")):
+                    good.append(channel)
+                    self.publishers[channel].append(spec.name)
             wired[port] = tuple(good)
-        for port, declared in ports.items():
-            if isinstance(declared, Output) and port not in spec.outputs:
-                if declared.optional:
-                    wired[port] = ()
-                else:
-                    self.problem(
-                        (*at, "outputs", port),
-                        None,
-                        f"a channel of {declared.message_type.__name__}: output {port!r} of "
-                        f"actor {spec.name!r} is required but not wired",
-                    )
+        for port in self._unwired(spec, ports, Output, spec.outputs, (*at, "outputs")):
+            wired[port] = ()
         return wired
 
     def channel_nodes(self) -> dict[str, ChannelNode]:
