@@ -9,14 +9,14 @@ with the same decorator and no change to the core.
 
 Why frozen dataclasses and not pydantic models
 ----------------------------------------------
-Measured on this machine (``whexar bench runtime`` prints the same
-comparison), for a message of four fields:
+Measured on this machine (``whexar bench runtime`` prints the creation
+cost again, for :class:`Heartbeat`):
 
 =====================================  ===========  ============
                                        creation     field read
 =====================================  ===========  ============
-frozen dataclass (slots, kw_only)      ~1.0 µs      ~33 ns
-pydantic ``BaseModel`` (frozen)        ~1.5 µs      ~60 ns
+frozen dataclass (slots, kw_only)      ~0.9 µs      ~33 ns
+pydantic ``BaseModel`` (frozen)        ~1.25 µs     ~60 ns
 pydantic ``model_construct``           ~2.7 µs      ~60 ns
 =====================================  ===========  ============
 
