@@ -110,36 +110,36 @@ class Channel(Generic[M]):
 
     async def send(self, msg: M) -> None:
         """Publish ``msg`` to every subscriber, applying the channel's policy."""
-        if self.observer is not None:
-            self.observer(self.name, msg)
-        self.published += 1
-        for sub in self._subs:
-            queue = sub.queue
-            if not queue.full():
-                queue.put_nowait(msg)
-            elif self.policy is Policy.BACKPRESSURE:
-                await queue.put(msg)
-            else:
-                self._overflow(sub, msg)
-
-    def send_nowait(self, msg: M) -> None:
-        """Publish without waiting; a full ``backpressure`` buffer raises :class:`WouldBlock`."""
-        if self.policy is Policy.BACKPRESSURE and any(s.queue.full() for s in self._subs):
-            raise WouldBlock  # checked first, so a refused message reaches nobody
-        if self.observer is not None:
-            self.observer(self.name, msg)
-        self.published += 1
+        if self.policy is not Policy.BACKPRESSURE:
+            self.send_nowait(msg)  # latest and queue never wait
+            return
+        self._count(msg)
         for sub in self._subs:
             if sub.queue.full():
-                self._overflow(sub, msg)
+                await sub.queue.put(msg)
             else:
                 sub.queue.put_nowait(msg)
 
-    def _overflow(self, sub: _Subscription[M], msg: M) -> None:
-        sub.dropped += 1
-        if self.policy is Policy.LATEST:
-            sub.queue.get_nowait()
-            sub.queue.put_nowait(msg)
+    def send_nowait(self, msg: M) -> None:
+        """Publish without waiting; a full ``backpressure`` buffer raises :class:`WouldBlock`."""
+        backpressure = self.policy is Policy.BACKPRESSURE
+        if backpressure and any(s.queue.full() for s in self._subs):
+            raise WouldBlock  # checked first, so a refused message reaches nobody
+        self._count(msg)
+        for sub in self._subs:
+            queue = sub.queue
+            if queue.full():  # never for backpressure: checked above
+                sub.dropped += 1
+                if self.policy is Policy.LATEST:
+                    queue.get_nowait()
+                    queue.put_nowait(msg)
+            else:
+                queue.put_nowait(msg)
+
+    def _count(self, msg: M) -> None:
+        if self.observer is not None:
+            self.observer(self.name, msg)
+        self.published += 1
 
     def stats(self) -> ChannelStats:
         """A snapshot of the counters."""

@@ -46,7 +46,6 @@ from __future__ import annotations
 import asyncio
 import math
 import selectors
-import time
 from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar, TypeVarTuple, cast
 
@@ -55,7 +54,7 @@ import anyio
 T = TypeVar("T")
 Ts = TypeVarTuple("Ts")
 
-__all__ = ["Clock", "VirtualEventLoop", "VirtualTimeDeadlockError", "run", "wall_time"]
+__all__ = ["Clock", "VirtualEventLoop", "VirtualTimeDeadlockError", "run"]
 
 
 class VirtualTimeDeadlockError(RuntimeError):
@@ -160,11 +159,6 @@ class Clock:
     def deadline(self, dt: float) -> float:
         """The loop time ``dt`` seconds from now (``inf`` stays ``inf``)."""
         return math.inf if math.isinf(dt) else self._loop.time() + dt
-
-
-def wall_time() -> float:
-    """Seconds since the Unix epoch, for log headers only; never for control."""
-    return time.time()
 
 
 def run(

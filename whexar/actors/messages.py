@@ -69,15 +69,6 @@ class Message:
     source: str
 
 
-def message_type(name: str) -> type[Message]:
-    """The registered message class called ``name``; :class:`UsageError` lists the known ones."""
-    try:
-        return MESSAGE_TYPES[name]
-    except KeyError:
-        known = ", ".join(sorted(MESSAGE_TYPES))
-        raise UsageError(f"unknown message type {name!r}; known: {known}") from None
-
-
 # --------------------------------------------------------------------------- generic
 
 

@@ -48,7 +48,14 @@ from pydantic import Field, ValidationError
 from whexar.actors.actor import Actor, ActorParams, Input, Output
 from whexar.actors.channels import Policy, capacity_or_default
 from whexar.actors.messages import MESSAGE_TYPES, Event, Message
-from whexar.config import Section, format_path, problem_from_error, read_toml
+from whexar.config import (
+    NonNegative,
+    Positive,
+    Section,
+    format_path,
+    problem_from_error,
+    read_toml,
+)
 from whexar.errors import MISSING, ConfigError, Problem
 
 EVENTS_CHANNEL = "events"
@@ -58,8 +65,6 @@ RUNTIME = "runtime"
 """The ``source`` of messages the runtime itself makes."""
 
 Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$", max_length=64)]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
 class WiringError(ConfigError):

@@ -17,6 +17,7 @@ from pydantic import Field
 
 from whexar.actors.actor import Actor, ActorParams, Input, Output
 from whexar.actors.messages import Heartbeat, Message
+from whexar.config import NonNegative, Positive
 
 
 class InjectedFailure(RuntimeError):  # noqa: N818 - a failure on purpose, not an error of ours
@@ -27,8 +28,8 @@ class Pulse(Actor):
     """Publishes ``Heartbeat(seq)`` every ``period_s`` on its ``out`` port."""
 
     class Params(ActorParams):
-        period_s: float = Field(0.01, gt=0, allow_inf_nan=False)
-        open_s: float = Field(0.0, ge=0, allow_inf_nan=False)
+        period_s: Positive = 0.01
+        open_s: NonNegative = 0.0
         """Time taken to 'open resources' before reporting ready."""
         burst: int = Field(1, ge=1)
         """Heartbeats published per cycle."""
@@ -36,14 +37,14 @@ class Pulse(Actor):
         """Cycles to run before returning; ``None`` runs until stopped."""
         slow_cycles: tuple[int, ...] = ()
         """Cycles that take ``slow_s`` of work (to cause overruns)."""
-        slow_s: float = Field(0.0, ge=0, allow_inf_nan=False)
-        fail_after_s: float | None = Field(None, ge=0, allow_inf_nan=False)
+        slow_s: NonNegative = 0.0
+        fail_after_s: NonNegative | None = None
         """Raise :class:`InjectedFailure` this long after each start..."""
-        heal_at_s: float | None = Field(None, ge=0, allow_inf_nan=False)
+        heal_at_s: NonNegative | None = None
         """...unless the clock has reached ``heal_at_s``."""
         fail_on_open: bool = False
         """Fail before reporting ready (a device that will not open)."""
-        cleanup_s: float = Field(0.0, ge=0, allow_inf_nan=False)
+        cleanup_s: NonNegative = 0.0
         """Shielded cleanup time when stopped (servos to a safe state)."""
 
     params: Params
@@ -109,8 +110,8 @@ class Sink(Actor):
     """Consumes ``inp`` taking ``delay_s`` per message; republishes each on ``seen``."""
 
     class Params(ActorParams):
-        delay_s: float = Field(0.0, ge=0, allow_inf_nan=False)
-        start_s: float = Field(0.0, ge=0, allow_inf_nan=False)
+        delay_s: NonNegative = 0.0
+        start_s: NonNegative = 0.0
         """Do not read before this clock time (lets a backlog build up)."""
         stop_after: int | None = Field(None, ge=1)
         """Stop the runtime after consuming this many messages."""
