@@ -46,6 +46,7 @@ from __future__ import annotations
 import asyncio
 import math
 import selectors
+import time
 from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar, TypeVarTuple, cast
 
@@ -54,7 +55,14 @@ import anyio
 T = TypeVar("T")
 Ts = TypeVarTuple("Ts")
 
-__all__ = ["Clock", "VirtualEventLoop", "VirtualTimeDeadlockError", "run"]
+__all__ = [
+    "Clock",
+    "VirtualEventLoop",
+    "VirtualTimeDeadlockError",
+    "monotonic",
+    "run",
+    "wait_until",
+]
 
 
 class VirtualTimeDeadlockError(RuntimeError):
@@ -172,3 +180,33 @@ def run(
     if virtual:
         options["loop_factory"] = lambda: VirtualEventLoop(deadlock_after_s=deadlock_after_s)
     return anyio.run(fn, *args, backend="asyncio", backend_options=options)
+
+
+# --------------------------------------------------------------------------- threads
+
+
+def monotonic() -> float:
+    """Wall-clock seconds (arbitrary origin) for code outside any event loop.
+
+    Only real-time device emulators and port-owning threads use this: a
+    device emulated in real time must take the time the device takes.
+    """
+    return time.perf_counter()
+
+
+_SPIN_S = 0.0003
+"""Below this, :func:`wait_until` spins: ``time.sleep`` overshoots by ~0.1 ms on Linux."""
+
+
+def wait_until(deadline: float) -> None:
+    """Block the calling thread until :func:`monotonic` reaches ``deadline``.
+
+    Sleeps most of the way and spins the rest, so a 10 µs wire time is
+    honoured to a few microseconds (a real-time emulator's byte timing).
+    """
+    while True:
+        left = deadline - time.perf_counter()
+        if left <= 0:
+            return
+        if left > _SPIN_S:
+            time.sleep(left - _SPIN_S)
