@@ -15,8 +15,9 @@ in rad/s (0.229 rev/min per unit), currents in A, voltages in V.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntFlag
 from typing import Final, Literal
 
@@ -236,6 +237,16 @@ def model_name(number: int) -> str:
     return known.name if known else f"model {number}"
 
 
+_STRUCT_CODES: Final = {
+    (1, False): "B",
+    (1, True): "b",
+    (2, False): "H",
+    (2, True): "h",
+    (4, False): "I",
+    (4, True): "i",
+}
+
+
 @dataclass(frozen=True, slots=True)
 class Block:
     """A contiguous span of registers read or written in one transaction."""
@@ -244,10 +255,22 @@ class Block:
     length: int
     registers: tuple[Register, ...]
     """The registers asked for, in address order (the span may include others)."""
+    _layout: struct.Struct = field(init=False, repr=False, compare=False)
+    _names: tuple[str, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # One precompiled little-endian layout: decoding a span is one C call.
+        fmt, at = "<", self.start
+        for r in self.registers:
+            fmt += "x" * (r.address - at) + _STRUCT_CODES[r.size, r.signed]
+            at = r.end
+        fmt += "x" * (self.start + self.length - at)
+        object.__setattr__(self, "_layout", struct.Struct(fmt))
+        object.__setattr__(self, "_names", tuple(r.name for r in self.registers))
 
     def decode(self, data: bytes | bytearray | memoryview) -> dict[str, int]:
         """Every asked-for register's value from the span's bytes."""
-        return {r.name: r.decode(data, self.start) for r in self.registers}
+        return dict(zip(self._names, self._layout.unpack_from(data), strict=True))
 
 
 def block(names: Iterable[str], models: Iterable[ServoModel] = MODELS.values()) -> Block:
