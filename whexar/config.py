@@ -43,6 +43,7 @@ from pydantic import (
     model_validator,
 )
 
+from whexar.bus.plan import PRESETS, ReadPlan
 from whexar.errors import MISSING, ConfigError, Problem
 from whexar.kinematics.gait import GAIT_RANKING
 from whexar.kinematics.indices import STANDARD_GRAVITY, SUPPLY_VOLTAGE, WHEXAR_MASS
@@ -319,6 +320,25 @@ class BusSpec(Section):
     accepts (it has no 4.5 Mbps)."""
     return_delay_time_us: int = Field(default=20, ge=0, le=508, multiple_of=2)
     """Return Delay Time; the register counts 2 µs units (thesis used 20 µs, 5.3.6)."""
+    plan: str | ReadPlan = "default"
+    """A read plan: a preset's name (``whexar.bus.plan.PRESETS``) or a ``[bus.plan]`` table."""
+    on_stop: Literal["torque_off", "hold"] = "torque_off"
+    """The servos' state when the runtime stops: limp (default) or holding their goals."""
+    retries: int = Field(default=1, ge=0, le=10)
+    """Retries of a failed transaction within one cycle before the failure counts."""
+    degrade_after: int = Field(default=5, ge=1)
+    """Consecutive failed cycles after which a servo is left out and probed instead."""
+    probe_period_s: float = Field(default=0.5, gt=0)
+    """How often a degraded servo is pinged to see whether it is back."""
+    torque_retries: int = Field(default=3, ge=1)
+    """Attempts to enable a servo's torque at start-up and after a reboot."""
+
+    @field_validator("plan")
+    @classmethod
+    def _known_plan(cls, value: str | ReadPlan) -> str | ReadPlan:
+        if isinstance(value, str) and value not in PRESETS:
+            raise ValueError(f"a preset ({', '.join(PRESETS)}) or a [bus.plan] table")
+        return value
 
     @field_validator("protocol")
     @classmethod

@@ -121,6 +121,7 @@ class ActorContext:
     emit: Callable[[Event], None]
     ready: Callable[[], None]
     request_stop: Callable[[str], None]
+    request_safe_stop: Callable[[str], None]
     stop_timeout_s: float
 
 
@@ -175,6 +176,10 @@ class Actor:
     def request_stop(self, reason: str) -> None:
         """Ask the runtime to stop every actor (a scenario that has run its course)."""
         self._ctx.request_stop(f"{self.name}: {reason}")
+
+    def request_safe_stop(self, reason: str) -> None:
+        """Ask the runtime for a safe stop (every actor's :meth:`safe_stop`, then exit 3)."""
+        self._ctx.request_safe_stop(f"{self.name}: {reason}")
 
     def ticker(self, period_s: float, *, start: float | None = None) -> Ticker:
         """A deadline ticker on the runtime clock whose overruns go to the event stream."""

@@ -160,6 +160,11 @@ class Inbox(Generic[M]):
         self.channel = channel
         self._queue = queue
 
+    @property
+    def connected(self) -> bool:
+        """False for an optional input the wiring left unconnected."""
+        return self._queue is not None
+
     async def receive(self) -> M:
         """The next message, waiting for one if the buffer is empty."""
         queue = self._queue
@@ -206,6 +211,11 @@ class Outbox(Generic[M]):
 
     def __init__(self, channels: tuple[Channel[M], ...]) -> None:
         self.channels = channels
+
+    @property
+    def connected(self) -> bool:
+        """False for an optional output the wiring left unconnected (nothing to build)."""
+        return bool(self.channels)
 
     async def send(self, msg: M) -> None:
         """Publish ``msg`` on every wired channel."""

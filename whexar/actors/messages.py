@@ -33,7 +33,7 @@ message cannot change after it is sent.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, TypeVar, cast, dataclass_transform
+from typing import Any, NamedTuple, TypeVar, cast, dataclass_transform
 
 from whexar.errors import UsageError
 
@@ -166,3 +166,160 @@ class TickOverrun(Event):
     period_s: float
     elapsed_s: float
     skipped: int
+
+
+# --------------------------------------------------------------------------- servo bus
+# Joints are addressed by (leg, joint) indices (whexar.robot): the bus
+# scheduler alone knows which servo ID drives which joint.
+
+
+@message
+class JointGoal(Message):
+    """A goal for joint ``joint`` of leg ``leg``: a position (rad) or, for the wheel, a speed."""
+
+    leg: int
+    joint: int
+    position_rad: float | None = None
+    velocity_rad_s: float | None = None
+
+
+@message
+class JointGoals(Message):
+    """Goals for any set of joints; the latest goal per joint wins at the next bus cycle.
+
+    ``reflex`` marks an override from a reflex actor (it is logged as such; it
+    goes out in the very next cycle like every goal).
+    """
+
+    goals: tuple[JointGoal, ...]
+    reflex: bool = False
+
+
+class JointState(NamedTuple):
+    """What one servo reported in a bus cycle; ``None`` where the plan did not read it.
+
+    ``alert`` is the status packet's Alert bit: Hardware Error Status is set.
+    A named tuple, not a message: 42 of them ride in every :class:`ServoStates`
+    (which carries the time), and a tuple is made five times faster than a
+    frozen dataclass (0.36 µs against 1.96 µs, measured here).
+    """
+
+    leg: int
+    joint: int
+    servo_id: int
+    position_rad: float | None = None
+    velocity_rad_s: float | None = None
+    current_a: float | None = None
+    alert: bool = False
+
+
+@message
+class ServoStates(Message):
+    """Every joint read in bus cycle ``cycle``, valid at ``t`` (the read's time)."""
+
+    cycle: int
+    joints: tuple[JointState, ...]
+
+
+@message
+class ServoHealth(Message):
+    """A slow-rate reading of one servo: input voltage, temperature, hardware error bits."""
+
+    servo_id: int
+    voltage_v: float | None = None
+    temperature_c: float | None = None
+    hardware_error: int | None = None
+
+
+@message
+class BusStats(Message):
+    """Counters of the servo bus since the scheduler started, and the recent cycle rate."""
+
+    cycles: int
+    rate_hz: float
+    bytes_per_cycle: float
+    read_mode: str
+    retries: int
+    timeouts: int
+    corrupt: int
+    clamped: int
+    degraded: tuple[int, ...]
+
+
+@message
+class GoalClamped(Event):
+    """A goal outside joint limits was clamped to ``sent_rad`` before it reached the wire."""
+
+    servo_id: int
+    requested_rad: float
+    sent_rad: float
+
+
+@message
+class ReadModeChanged(Event):
+    """The scheduler reads with ``mode`` ("fast_sync_read" or "sync_read") from now on."""
+
+    mode: str
+    reason: str
+
+
+@message
+class ServoFault(Event):
+    """A transaction with servo ``servo_id`` failed (``kind``: timeout, corrupt, error…)."""
+
+    servo_id: int
+    kind: str
+    consecutive: int
+
+
+@message
+class ServoDegraded(Event):
+    """Servo ``servo_id`` keeps failing: it is left out of the cycle and probed instead."""
+
+    servo_id: int
+    reason: str
+
+
+@message
+class ServoRecovered(Event):
+    """A degraded servo answers again and is back in the cycle, settings restored."""
+
+    servo_id: int
+
+
+@message
+class HardwareFault(Event):
+    """Servo ``servo_id`` reports Hardware Error Status ``bits`` (``description`` in words)."""
+
+    servo_id: int
+    bits: int
+    description: str
+
+
+@message
+class ServoRebooted(Event):
+    """Servo ``servo_id`` was rebooted to clear a hardware error (``ok``: it answered)."""
+
+    servo_id: int
+    ok: bool
+
+
+@message
+class ServoRestored(Event):
+    """Servo ``servo_id``'s settings were written again and its torque re-enabled."""
+
+    servo_id: int
+
+
+@message
+class BusWarning(Event):
+    """Something about the bus set-up that costs performance, and how to fix it."""
+
+    message: str
+
+
+@message
+class BusLost(Event):
+    """The bus can no longer drive the robot (port gone, a critical servo lost)."""
+
+    reason: str

@@ -152,6 +152,17 @@ class Runtime:
         if self._starting is not None:  # do not wait for an actor that is still starting
             self._starting.scope.cancel()
 
+    def request_safe_stop(self, reason: str) -> None:
+        """Stop as after an escalation: safe stop first, then exit status 3.
+
+        For an actor that lost hardware it cannot do without (a femur servo,
+        the servo port): the robot must be brought to rest, not just left.
+        """
+        if self._stop is None or self._stop.is_set():
+            return
+        self.escalated = True
+        self.request_stop(f"safe stop: {reason}")
+
     async def run(
         self,
         *,
@@ -221,6 +232,7 @@ class Runtime:
             emit=self.emit,
             ready=on_ready,
             request_stop=self.request_stop,
+            request_safe_stop=self.request_safe_stop,
             stop_timeout_s=self.settings.stop_timeout_s,
         )
 

@@ -1,0 +1,336 @@
+"""The bus scheduler on virtual time against the in-process servo emulator (real dynamixel-sdk)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+import pytest
+
+from whexar.actors.bus import EMULATORS, register_emulator
+from whexar.actors.messages import (
+    ActorFailed,
+    BusStats,
+    GoalClamped,
+    JointGoal,
+    JointGoals,
+    ReadModeChanged,
+    ServoHealth,
+    ServoStates,
+)
+from whexar.bus import control_table as ct
+from whexar.bus.emulator import ServoChain
+from whexar.bus.protocol import Instruction, Packet
+from whexar.config import RobotConfig
+from whexar.robot import JOINT_NAMES, servo_id
+from whexar.testing import Harness, RunResult, run_actors
+
+CFG = RobotConfig()
+FEMUR = JOINT_NAMES.index("femur")
+TIBIA = JOINT_NAMES.index("tibia")
+COXA = JOINT_NAMES.index("coxa")
+
+
+@pytest.fixture
+def chain() -> Iterator[ServoChain]:
+    made = ServoChain.from_config(CFG)
+    register_emulator("test", made)
+    yield made
+    EMULATORS.pop("test", None)
+
+
+def graph(
+    params: dict[str, Any] | None = None, *, wiggle: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """Scheduler on ``emulator:test``; goals fed by the harness, or by a GoalWiggle."""
+    actors: list[dict[str, Any]] = [
+        {
+            "name": "bus",
+            "class": "whexar.actors.bus:BusScheduler",
+            "params": {"port": "emulator:test", **(params or {})},
+            "inputs": {"goals": "goals"},
+            "outputs": {"state": "state", "health": "health", "stats": "stats"},
+        }
+    ]
+    if wiggle is not None:
+        actors.append(
+            {
+                "name": "wiggle",
+                "class": "whexar.testing.bus:GoalWiggle",
+                "params": wiggle,
+                "inputs": {"state": "state"},
+                "outputs": {"goals": "goals"},
+            }
+        )
+    return {
+        "runtime": {"restart": {"max_restarts": 0}},
+        "actors": actors,
+        "channels": {
+            "goals": {"message": "JointGoals", "policy": "queue"},
+            "state": {"message": "ServoStates", "policy": "latest"},
+            "health": {"message": "ServoHealth", "policy": "queue"},
+            "stats": {"message": "BusStats", "policy": "latest"},
+        },
+    }
+
+
+def goal_writes(chain: ServoChain) -> list[dict[int, int]]:
+    """Record every Goal Position a Sync Write carries, as {id: ticks} per packet."""
+    seen: list[dict[int, int]] = []
+
+    def hook(_chain: ServoChain, _t: float, packets: Sequence[Packet]) -> None:
+        for p in packets:
+            if p.instruction != Instruction.SYNC_WRITE:
+                continue
+            start = int.from_bytes(p.params[0:2], "little")
+            length = int.from_bytes(p.params[2:4], "little")
+            if start != 116 or length != 4:
+                continue
+            body = p.params[4:]
+            seen.append(
+                {
+                    body[k]: int.from_bytes(body[k + 1 : k + 5], "little", signed=True)
+                    for k in range(0, len(body), 5)
+                }
+            )
+
+    chain.hooks.append(hook)
+    return seen
+
+
+def table(chain: ServoChain, sid: int, name: str) -> int:
+    servo = chain.servos[sid]
+    reg = servo.model.register(name)
+    return reg.decode(servo.read(reg.address, reg.size), reg.address)
+
+
+def goals(*items: tuple[int, int, float], t: float = 0.0, reflex: bool = False) -> JointGoals:
+    return JointGoals(
+        t=t,
+        source="harness",
+        reflex=reflex,
+        goals=tuple(
+            JointGoal(t=t, source="harness", leg=leg, joint=j, position_rad=q)
+            for leg, j, q in items
+        ),
+    )
+
+
+def run(
+    g: dict[str, Any],
+    scenario: Callable[[Harness], Any] | None = None,
+    duration: float | None = None,
+) -> RunResult:
+    return run_actors(g, duration=duration, scenario=scenario, feeds=["goals"])
+
+
+# --------------------------------------------------------------------------- start-up
+
+
+def test_start_up_configures_every_servo_and_enables_torque(chain: ServoChain) -> None:
+    result = run(graph(), duration=1.0)
+    assert result.exit_code == 0
+    assert not result.events(ActorFailed)
+    for sid, servo in chain.servos.items():
+        assert table(chain, sid, "return_delay_time") == 10  # 20 µs in 2 µs units
+        mode = 1 if servo.model.name == "MX-28" and sid % 7 == 0 else 3
+        assert table(chain, sid, "operating_mode") == mode
+    # Stopped: torque off on every servo (bus.on_stop = torque_off).
+    assert all(table(chain, sid, "torque_enable") == 0 for sid in chain.servos)
+    modes = result.events(ReadModeChanged)
+    assert [m.mode for m in modes] == ["sync_read"]  # MX: Fast Sync Read not answered
+    assert result.messages("state", of=ServoStates)
+
+
+def test_torque_is_on_while_running_and_held_with_on_stop_hold(chain: ServoChain) -> None:
+    async def scenario(h: Harness) -> None:
+        await h.wait_for(ServoStates)
+        assert all(table(chain, sid, "torque_enable") == 1 for sid in chain.servos)
+
+    path = _config_with(bus={"on_stop": "hold"})
+    result = run(graph({"config": str(path)}), scenario)
+    assert result.exit_code == 0
+    assert all(table(chain, sid, "torque_enable") == 1 for sid in chain.servos)
+
+
+def test_model_mismatch_names_the_servo_and_both_models() -> None:
+    cfg = RobotConfig()
+    made = ServoChain.from_config(cfg)
+    wrong = servo_id(0, "coxa")
+    made.servos[wrong].table[0:2] = (321).to_bytes(2, "little")  # an MX-106 where an MX-64 is
+    register_emulator("test", made)
+    try:
+        result = run(graph(), duration=1.0)
+    finally:
+        EMULATORS.pop("test", None)
+    failed = result.events(ActorFailed)
+    assert failed
+    assert f"servo {wrong} (RF coxa) is a MX-106 (model 321)" in failed[0].error
+    assert "configuration says MX-64 (model 311)" in failed[0].error
+    assert result.exit_code == 3
+
+
+# --------------------------------------------------------------------------- plans
+
+
+@pytest.mark.parametrize(
+    ("plan", "count", "fields"),
+    [
+        ("full_feedback", 42, {"position_rad", "velocity_rad_s", "current_a"}),
+        ("positioning", 24, {"position_rad"}),
+        ("thesis", 42, {"position_rad", "current_a"}),
+        ("default", 24, {"position_rad", "current_a"}),
+    ],
+)
+def test_plan_decides_what_each_cycle_reads(
+    chain: ServoChain, plan: str, count: int, fields: set[str]
+) -> None:
+    result = run(graph({"plan": plan}), duration=0.5)
+    states = result.messages("state", of=ServoStates)
+    assert len(states) > 10
+    last = states[-1]
+    assert len(last.joints) == count
+    for js in last.joints:
+        present = {
+            f for f in ("position_rad", "velocity_rad_s", "current_a") if getattr(js, f) is not None
+        }
+        assert present == fields
+
+
+def test_default_plan_reads_health_of_every_servo_round_robin(chain: ServoChain) -> None:
+    chain.servos[5].input_voltage_v = 11.3
+    result = run(graph({"plan": "default"}), duration=2.0)
+    health = result.messages("health", of=ServoHealth)
+    volts = {h.servo_id: h.voltage_v for h in health if h.voltage_v is not None}
+    errors = {h.servo_id for h in health if h.hardware_error is not None}
+    assert set(volts) == set(chain.servos)
+    assert errors == set(chain.servos)
+    assert volts[5] == pytest.approx(11.3)
+    assert volts[6] == pytest.approx(12.0)
+
+
+def test_cycle_rate_is_bus_bound(chain: ServoChain) -> None:
+    result = run(graph({"plan": "full_feedback"}, wiggle={}), duration=2.0)
+    stats = result.messages("stats", of=BusStats)
+    assert stats
+    timing = chain.timing
+    rdt = 20e-6
+    limit = 1 / (
+        timing.sync_read_s(42, 10, rdt) + timing.sync_write_s(36, 4) + timing.sync_write_s(6, 4)
+    )
+    assert stats[-1].rate_hz == pytest.approx(limit, rel=0.03)
+
+
+# --------------------------------------------------------------------------- goals
+
+
+def test_latest_goal_per_joint_wins_and_goes_out_next_cycle(chain: ServoChain) -> None:
+    writes = goal_writes(chain)
+    femur = servo_id(2, "femur")
+
+    async def scenario(h: Harness) -> None:
+        await h.wait_for(ServoStates)
+        writes.clear()
+        for q in (0.1, 0.2, 0.3):
+            await h.feed("goals", goals((2, FEMUR, q)))
+        await h.wait_for(ServoStates)
+        await h.wait_for(ServoStates)
+
+    run(graph(), scenario)
+    sent = [w[femur] for w in writes if femur in w]
+    assert sent == [ct.rad_to_ticks(0.3)]
+    assert table(chain, femur, "goal_position") == ct.rad_to_ticks(0.3)
+
+
+def test_goal_outside_limits_is_clamped_and_reported(chain: ServoChain) -> None:
+    writes = goal_writes(chain)
+    tibia = servo_id(1, "tibia")
+    hi = (CFG.joints.by_name("tibia").limits_rad or (0.0, 0.0))[1]
+    coxa = servo_id(0, "coxa")
+
+    async def scenario(h: Harness) -> None:
+        await h.wait_for(ServoStates)
+        await h.feed("goals", goals((1, TIBIA, 4.0), (0, COXA, -9.0), reflex=True))
+        await h.wait_for(ServoStates)
+        await h.wait_for(ServoStates)
+
+    result = run(graph(), scenario)
+    clamped = result.events(GoalClamped)
+    assert {(c.servo_id, c.requested_rad) for c in clamped} == {(tibia, 4.0), (coxa, -9.0)}
+    by_id = {c.servo_id: c.sent_rad for c in clamped}
+    assert by_id[tibia] == pytest.approx(min(hi, ct.ticks_to_rad(4095)))
+    assert by_id[coxa] == pytest.approx(max(math.radians(-135), ct.ticks_to_rad(0)))
+    # Nothing outside a joint's limits reached the wire, and no servo refused a goal.
+    for w in writes:
+        for sid, ticks in w.items():
+            joint = JOINT_NAMES[(sid - 1) % 7]
+            lo_q, hi_q = CFG.joints.by_name(joint).limits_rad or (-math.pi, math.pi)
+            assert ct.rad_to_ticks(lo_q) - 1 <= ticks <= ct.rad_to_ticks(hi_q) + 1
+            assert 0 <= ticks <= 4095
+    assert all(s.rejected_goals == 0 for s in chain.servos.values())
+
+
+# --------------------------------------------------------------------------- fast sync read
+
+
+def test_fast_sync_read_is_used_when_the_servos_answer_it() -> None:
+    made = ServoChain.from_config(CFG, fast_sync_read=True)
+    register_emulator("test", made)
+    try:
+        result = run(graph({"plan": "default"}), duration=0.3)
+    finally:
+        EMULATORS.pop("test", None)
+    assert [m.mode for m in result.events(ReadModeChanged)] == ["fast_sync_read"]
+    assert len(result.messages("state", of=ServoStates)[-1].joints) == 24
+
+
+def test_fast_sync_read_falls_back_when_it_stops_working() -> None:
+    made = ServoChain.from_config(CFG, fast_sync_read=True)
+    register_emulator("test", made)
+
+    async def scenario(h: Harness) -> None:
+        await h.wait_for(ServoStates)
+        for servo in made.servos.values():
+            servo.fast_sync_read = False
+        change = await h.wait_for(ReadModeChanged)
+        assert change.mode == "sync_read"
+        after = await h.wait_for(ServoStates)
+        assert len(after.joints) == 24
+
+    try:
+        result = run(graph({"plan": "default"}), scenario)
+    finally:
+        EMULATORS.pop("test", None)
+    assert result.exit_code == 0
+
+
+# --------------------------------------------------------------------------- determinism
+
+
+def test_same_run_gives_the_same_log() -> None:
+    digests = []
+    for _ in range(2):
+        made = ServoChain.from_config(CFG)
+        register_emulator("test", made)
+        try:
+            digests.append(run(graph(wiggle={}), duration=0.5).log.digest())
+        finally:
+            EMULATORS.pop("test", None)
+    assert digests[0] == digests[1]
+
+
+def _config_with(**sections: dict[str, Any]) -> Any:
+    """Write the default configuration with ``sections`` overridden to a temporary TOML file."""
+    import tempfile
+    from pathlib import Path
+
+    lines = []
+    for name, values in sections.items():
+        lines.append(f"[{name}]")
+        for key, value in values.items():
+            shown = f'"{value}"' if isinstance(value, str) else str(value).lower()
+            lines.append(f"{key} = {shown}")
+    path = Path(tempfile.mkdtemp()) / "whexar.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path

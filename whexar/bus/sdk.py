@@ -1,0 +1,369 @@
+"""The servo port through dynamixel-sdk, and the one owner that may touch it.
+
+Theory of operation
+-------------------
+:class:`DxlBus` is the whole of whexar's use of dynamixel-sdk: ping, read,
+write, reboot, Sync Read (plain or fast) and Sync Write, each returning the
+SDK's result code checked per transaction. It is synchronous, like the SDK,
+and must only ever be called by the port's owner:
+
+* :class:`ThreadPortOwner` — a dedicated thread owns a real port (a U2D2, a
+  pseudo-terminal) and runs jobs from a queue. The SDK busy-polls while it
+  waits for status packets, so it must never run on the event loop.
+* :class:`InlinePortOwner` — for the in-process emulator: the job runs at
+  once on the loop (the emulator answers instantly), then the actor sleeps
+  the bus time the emulator charged. On virtual time that makes every
+  transaction cost exactly its wire time; it is how tests, benchmarks and the
+  simulator drive the real SDK deterministically.
+
+Sync Read is built from the SDK's own ``syncReadTx``/``readRx`` (what
+``GroupSyncRead`` does) so that each status packet's ERR byte is kept — the
+SDK's group drops it and with it the Alert bit — and so that the servos read
+before a failure keep their data: the SDK stops at the first failing servo
+and reports nothing. Fast Sync Read uses ``syncReadTx(fast)`` and
+``fastSyncReadRx``; its single status packet is split per servo here.
+
+Port errors (a vanished USB device raises ``OSError`` in pyserial) become
+:class:`~whexar.errors.DeviceGoneError`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import queue
+import threading
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final, Protocol, TypeVar
+
+import anyio
+import dynamixel_sdk as dxl
+from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
+
+from whexar.actors.clock import Clock
+from whexar.bus.control_table import Register
+from whexar.bus.protocol import crc16
+from whexar.errors import DeviceGoneError
+
+T = TypeVar("T")
+
+COMM_SUCCESS: Final[int] = dxl.COMM_SUCCESS
+COMM_RX_TIMEOUT: Final[int] = dxl.COMM_RX_TIMEOUT
+COMM_RX_CORRUPT: Final[int] = dxl.COMM_RX_CORRUPT
+ALERT_BIT = 0x80
+"""ERR bit 7 of a status packet: Hardware Error Status is non-zero (e-manual, Protocol 2.0)."""
+
+
+def comm_name(result: int) -> str:
+    """A short name of an SDK result code: ``timeout``, ``corrupt``, ``busy``…"""
+    return {
+        dxl.COMM_SUCCESS: "ok",
+        dxl.COMM_PORT_BUSY: "busy",
+        dxl.COMM_TX_FAIL: "tx_fail",
+        dxl.COMM_RX_FAIL: "rx_fail",
+        dxl.COMM_TX_ERROR: "tx_error",
+        dxl.COMM_RX_WAITING: "rx_waiting",
+        dxl.COMM_RX_TIMEOUT: "timeout",
+        dxl.COMM_RX_CORRUPT: "corrupt",
+        dxl.COMM_NOT_AVAILABLE: "not_available",
+    }.get(result, f"result {result}")
+
+
+class Port(Protocol):
+    """What dynamixel-sdk needs of a port: a ``PortHandler`` or an emulated one."""
+
+    is_using: bool
+
+    def clearPort(self) -> None: ...  # noqa: N802 — the SDK's names
+    def writePort(self, packet: Any) -> int: ...  # noqa: N802
+    def readPort(self, length: int) -> Any: ...  # noqa: N802
+    def getBaudRate(self) -> int: ...  # noqa: N802
+
+
+@dataclass(frozen=True, slots=True)
+class Reply:
+    """One unicast transaction: the SDK result, the status ERR byte and the value read."""
+
+    result: int
+    error: int = 0
+    value: int = 0
+
+    @property
+    def ok(self) -> bool:
+        """The status packet arrived intact (its ERR byte may still report a problem)."""
+        return self.result == COMM_SUCCESS
+
+    @property
+    def alert(self) -> bool:
+        """The servo's Hardware Error Status is set."""
+        return bool(self.error & ALERT_BIT)
+
+
+@dataclass(slots=True)
+class SyncReadResult:
+    """A Sync Read: data and ERR byte per servo that answered before any failure.
+
+    ``failed`` is the first servo whose status did not arrive intact (``None``
+    on success); servos after it were not decoded.
+    """
+
+    result: int
+    data: dict[int, bytes] = field(default_factory=dict)
+    errors: dict[int, int] = field(default_factory=dict)
+    failed: int | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.result == COMM_SUCCESS
+
+
+class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
+    """dynamixel-sdk's Protocol 2.0 packet handler, with its CRC table built once.
+
+    The SDK's ``updateCRC`` rebuilds its 256-entry table as a list literal on
+    every call — one call per packet, 43 per Sync Read of 42 servos. Same
+    polynomial and results (:func:`whexar.bus.protocol.crc16`, tested equal);
+    everything else is the SDK's own code.
+    """
+
+    def updateCRC(self, crc_accum: int, data_blk_ptr: Any, data_blk_size: int) -> int:  # noqa: N802
+        return crc16(bytes(data_blk_ptr[:data_blk_size]), crc_accum)
+
+
+class DxlBus:
+    """Every transaction whexar makes, through dynamixel-sdk's Protocol 2.0 packet handler."""
+
+    def __init__(self, port: Port) -> None:
+        self.port = port
+        self.ph = PacketHandler()
+
+    @contextlib.contextmanager
+    def _gone(self) -> Iterator[None]:
+        try:
+            yield
+        except OSError as exc:  # pyserial's SerialException is an OSError
+            self.port.is_using = False  # the SDK leaves it set when the port raises
+            name = getattr(self.port, "port_name", "the servo port")
+            raise DeviceGoneError(f"servo port {name}: {exc}") from exc
+
+    def ping(self, servo: int) -> Reply:
+        """Ping ``servo``; ``value`` is its model number."""
+        with self._gone():
+            model, result, error = self.ph.ping(self.port, servo)
+        return Reply(result, error, model)
+
+    def read(self, servo: int, reg: Register) -> Reply:
+        """Read one register of one servo."""
+        with self._gone():
+            data, result, error = self.ph.readTxRx(self.port, servo, reg.address, reg.size)
+        value = reg.decode(bytes(data), reg.address) if result == COMM_SUCCESS else 0
+        return Reply(result, error, value)
+
+    def write(self, servo: int, reg: Register, value: int) -> Reply:
+        """Write one register of one servo and wait for its status."""
+        with self._gone():
+            result, error = self.ph.writeTxRx(
+                self.port, servo, reg.address, reg.size, list(reg.encode(value))
+            )
+        return Reply(result, error)
+
+    def reboot(self, servo: int) -> Reply:
+        """Reboot ``servo`` (clears a latched hardware error; torque comes back off)."""
+        with self._gone():
+            result, error = self.ph.reboot(self.port, servo)
+        return Reply(result, error)
+
+    def sync_write(self, start: int, length: int, values: Mapping[int, bytes]) -> int:
+        """One Sync Write of ``length`` bytes at ``start`` per servo; the SDK result."""
+        if not values:
+            return COMM_SUCCESS
+        param: list[int] = []
+        for servo, data in values.items():
+            param.append(servo)
+            param.extend(data)
+        with self._gone():
+            result: int = self.ph.syncWriteTxOnly(self.port, start, length, param, len(param))
+        return result
+
+    def sync_read(
+        self, ids: Sequence[int], start: int, length: int, *, fast: bool = False
+    ) -> SyncReadResult:
+        """One Sync Read (or Fast Sync Read) of ``length`` bytes at ``start`` from ``ids``."""
+        if not ids:
+            return SyncReadResult(COMM_SUCCESS)
+        with self._gone():
+            result = self.ph.syncReadTx(self.port, start, length, list(ids), len(ids), fast)
+            if result != COMM_SUCCESS:
+                return SyncReadResult(result, failed=ids[0])
+            return self._fast_rx(ids, length) if fast else self._rx(ids, length)
+
+    def _rx(self, ids: Sequence[int], length: int) -> SyncReadResult:
+        out = SyncReadResult(COMM_SUCCESS)
+        for servo in ids:
+            data, result, error = self.ph.readRx(self.port, servo, length)
+            if result != COMM_SUCCESS:
+                out.result, out.failed = result, servo
+                return out
+            out.data[servo] = bytes(data)
+            out.errors[servo] = error
+        return out
+
+    def _fast_rx(self, ids: Sequence[int], length: int) -> SyncReadResult:
+        # One packet from 0xFE: [ERR, ID, data…, CRC₂] per servo (e-manual, Fast Sync Read).
+        raw, result, _ = self.ph.fastSyncReadRx(
+            self.port, dxl.BROADCAST_ID, (length + 4) * len(ids)
+        )
+        if result != COMM_SUCCESS:
+            return SyncReadResult(result, failed=ids[0])
+        out = SyncReadResult(COMM_SUCCESS)
+        raw = bytes(raw)
+        step = length + 4
+        for k, expected in enumerate(ids):
+            seg = raw[k * step : (k + 1) * step]
+            if len(seg) < step or seg[1] != expected:
+                out.result, out.failed = COMM_RX_CORRUPT, expected
+                return out
+            out.errors[expected] = seg[0]
+            out.data[expected] = seg[2 : 2 + length]
+        return out
+
+
+# --------------------------------------------------------------------------- owners
+
+
+class PortOwner(Protocol):
+    """The one task or thread that may use a :class:`DxlBus`; others send it jobs."""
+
+    async def call(self, job: Callable[[DxlBus], T]) -> T:
+        """Run ``job`` on the bus and return its result."""
+        ...
+
+    def close(self) -> None:
+        """Release the port."""
+        ...
+
+
+class InlinePortOwner:
+    """Runs jobs on the loop against an in-process emulated port, then sleeps their bus time.
+
+    ``port`` must offer ``take_elapsed()`` (the bus time its transactions
+    cost); :class:`~whexar.bus.emulator.EmulatedPort` does.
+    """
+
+    def __init__(self, port: Any, clock: Clock) -> None:
+        self.bus = DxlBus(port)
+        self._port = port
+        self._clock = clock
+        self._lock = anyio.Lock()  # the bus is busy until a job's time has passed
+
+    async def call(self, job: Callable[[DxlBus], T]) -> T:
+        async with self._lock:
+            try:
+                return job(self.bus)
+            finally:
+                # Charge the bus time even when the job raised: the wire was busy.
+                with anyio.CancelScope(shield=True):
+                    await self._clock.sleep(self._port.take_elapsed())
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self._port.closePort()
+
+
+_STOP = object()
+
+
+class ThreadPortOwner:
+    """A dedicated thread owns a real port; the event loop sends it jobs through a queue.
+
+    Each job's result (or exception) comes back to the awaiting task through
+    ``call_soon_threadsafe``. The thread is a daemon so that a wedged port
+    cannot keep the process alive.
+    """
+
+    def __init__(self, port: Any, *, name: str = "servo-port") -> None:
+        self.bus = DxlBus(port)
+        self._port = port
+        self._jobs: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._serve, name=name, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        while True:
+            item = self._jobs.get()
+            if item is _STOP:
+                return
+            job, loop, future = item
+            try:
+                result = job(self.bus)
+            except BaseException as exc:  # handed to the awaiting task, never lost
+                loop.call_soon_threadsafe(_settle, future, None, exc)
+            else:
+                loop.call_soon_threadsafe(_settle, future, result, None)
+
+    async def call(self, job: Callable[[DxlBus], T]) -> T:
+        loop = asyncio.get_running_loop()
+        future: asyncio.Future[T] = loop.create_future()
+        self._jobs.put((job, loop, future))
+        # Not cancellable midway: the SDK cannot abandon a transaction (it
+        # times out within tens of ms), so a cancelled caller waits for the
+        # job it queued; the next job then finds the port free.
+        with anyio.CancelScope(shield=True):
+            result = await future
+        return result
+
+    def close(self) -> None:
+        self._jobs.put(_STOP)
+        self._thread.join(timeout=1.0)
+        with contextlib.suppress(Exception):
+            self._port.closePort()
+
+
+def _settle(future: asyncio.Future[Any], result: Any, exc: BaseException | None) -> None:
+    if future.done():
+        return
+    if exc is not None:
+        future.set_exception(exc)
+    else:
+        future.set_result(result)
+
+
+def open_port(name: str, baudrate: int) -> Any:
+    """Open a real serial port (U2D2, pty) with dynamixel-sdk's ``PortHandler``.
+
+    Raises :class:`DeviceGoneError` naming the port when it cannot be opened.
+    """
+    port = dxl.PortHandler(name)
+    try:
+        if not port.openPort():
+            raise DeviceGoneError(f"servo port {name}: could not open it")
+        if not port.setBaudRate(baudrate):
+            raise DeviceGoneError(f"servo port {name}: baud rate {baudrate} refused")
+    except OSError as exc:
+        raise DeviceGoneError(f"servo port {name}: {exc}") from exc
+    return port
+
+
+def latency_timer_ms(
+    port_name: str, sysfs: Path = Path("/sys/bus/usb-serial/devices")
+) -> int | None:
+    """The USB-serial latency timer of ``port_name`` (ms), or ``None`` where there is none.
+
+    FTDI adapters (the U2D2 among them) default to 16 ms, which caps a
+    request/response bus at a few dozen cycles per second; every project that
+    reads fast sets it to 1 ms (notes, "Practice from other Dynamixel users").
+    """
+    device = Path(port_name).resolve().name
+    try:
+        return int((sysfs / device / "latency_timer").read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
+LATENCY_FIX = (
+    "install config/99-whexar-dynamixel.rules into /etc/udev/rules.d/ and replug the adapter, "
+    "or run: echo 1 | sudo tee /sys/bus/usb-serial/devices/{device}/latency_timer"
+)
+"""How to set the latency timer to 1 ms; ``{device}`` is the port's device name."""
