@@ -9,6 +9,7 @@ import statistics
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 Progress = Callable[[str], None] | None
 
@@ -50,11 +51,18 @@ class Report:
     items: list[Figure] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     """Lines printed under the table: context, comparisons, how the figures were taken."""
+    data: dict[str, Any] | None = None
+    """What ``--json`` prints when a suite has more structure than key → value."""
 
     @property
     def figures(self) -> dict[str, float]:
         """Key → value, for ``--json``."""
         return {f.key: round(f.value, 3) for f in self.items}
+
+    @property
+    def json(self) -> dict[str, Any]:
+        """What ``--json`` prints: :attr:`data` if the suite gave it, else :attr:`figures`."""
+        return self.data if self.data is not None else dict(self.figures)
 
     @property
     def passed(self) -> bool:

@@ -1,0 +1,344 @@
+"""``whexar bench bus``: the servo bus against the emulator's bus limit for each read plan.
+
+What each figure runs (42 servos, 1 Mbps, Return Delay Time 20 µs):
+
+* **hz** — the whole runtime (a :class:`~whexar.actors.bus.BusScheduler` and
+  a :class:`~whexar.testing.bus.GoalWiggle` that changes all 42 goals every
+  cycle) on virtual time against the in-process emulator, through the real
+  dynamixel-sdk; cycles per second of runtime time.
+* **limit_hz** — the same cycle costed by the emulator's timing model alone:
+  the plan's reads, then the Sync Writes of 36 positions and 6 wheel speeds,
+  with the slow round-robin reads spread at their rates. No scheduler can
+  beat it on this bus.
+* **cpu_ms_per_cycle** — the same graph on *real* time with the in-process
+  emulator: process CPU time per cycle minus the time spent inside the
+  emulator, so it is the bus path (scheduler, SDK codec, conversions) plus
+  the runtime's message passing and the goal source.
+* **realtime_hz** — ``full_feedback`` and ``positioning`` on real time
+  through the real SDK over a pseudo-terminal, against ``whexar emulate``
+  in another process waiting out each transaction's wire time: the path a
+  U2D2 takes, with the emulator standing in for the servos.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any, ClassVar, TypeVar
+
+from whexar.actors.bus import EMULATORS, BusScheduler, register_emulator
+from whexar.actors.clock import run as run_loop
+from whexar.actors.messages import ServoStates
+from whexar.actors.runtime import Runtime
+from whexar.actors.wiring import build_graph
+from whexar.bench import Figure, Progress, Report
+from whexar.bus.control_table import block, return_delay_units
+from whexar.bus.emulator import ServoChain, TimingModel
+from whexar.bus.plan import PRESETS, ReadPlan
+from whexar.bus.sdk import DxlBus, PortOwner
+from whexar.config import RobotConfig
+from whexar.robot import JOINT_NAMES, LEG_NAMES
+from whexar.testing import run_actors
+
+PLANS = ("thesis", "full_feedback", "fast_full_feedback", "positioning", "default")
+SHARE_OF_LIMIT = 0.95
+REALTIME_SHARE = 0.80
+FULL_FEEDBACK_HZ = 64.0
+"""Target: the thesis's position + current reading ran at 47–48 Hz (6.1.1, 6.1.4)."""
+POSITIONING_HZ = 110.0
+"""Target: the thesis's trimmed main loop ran at 80 Hz (6.1.4)."""
+CPU_TARGET_MS = 1.5
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class PlanFigures:
+    name: str
+    hz: float
+    limit_hz: float
+    bytes_per_cycle: float
+    realtime_hz: float | None = None
+
+
+def plan_limit(plan: ReadPlan, cfg: RobotConfig, timing: TimingModel) -> tuple[float, float]:
+    """(cycles/s, bytes per cycle) of ``plan`` on a bus that does nothing else."""
+    rdt = return_delay_units(cfg.bus.return_delay_time_us * 1e-6) * 2e-6
+    fast = plan.fast_sync_read == "on"
+    n_servos = len(LEG_NAMES) * len(JOINT_NAMES)
+    wheels = len(LEG_NAMES)
+    base = timing.sync_write_s(n_servos - wheels, 4) + timing.sync_write_s(wheels, 4)
+    nbytes = 2 * 14 + n_servos * 5.0
+    busy_per_s = 0.0
+    slow_bytes_per_s = 0.0
+    for read in plan.reads:
+        n = len(read.joints) * len(read.legs)
+        length = block(read.registers).length
+        if read.rate_hz is None:
+            base += timing.sync_read_s(n, length, rdt, fast)
+            nbytes += 14 + n + (8 + n * (length + 4) if fast else n * (11 + length))
+        else:
+            k = min(n, read.chunk or n)
+            busy_per_s += read.rate_hz * timing.sync_read_s(k, length, rdt, fast)
+            slow_bytes_per_s += read.rate_hz * (14 + k + k * (11 + length))
+    # Slow reads take their share of every second; the cycles share the rest.
+    hz = (1.0 - busy_per_s) / base
+    return hz, nbytes + slow_bytes_per_s / hz
+
+
+def _graph(port: str, plan: str, cycles: int | None = None) -> dict[str, Any]:
+    return {
+        "actors": [
+            {
+                "name": "bus",
+                "class": "whexar.actors.bus:BusScheduler",
+                "params": {"port": port, "plan": plan},
+                "inputs": {"goals": "goals"},
+                "outputs": {"state": "state"},
+            },
+            {
+                "name": "wiggle",
+                "class": "whexar.testing.bus:GoalWiggle",
+                "params": {"stop_after_cycles": cycles} if cycles else {},
+                "inputs": {"state": "state"},
+                "outputs": {"goals": "goals"},
+            },
+        ],
+        "channels": {
+            "goals": {"message": "JointGoals", "policy": "queue"},
+            "state": {"message": "ServoStates", "policy": "latest"},
+        },
+    }
+
+
+def _rate(states: list[ServoStates], skip_s: float = 0.2) -> float:
+    """Cycles per second of runtime time, after the first ``skip_s`` (start-up)."""
+    kept = [s for s in states if s.t >= states[0].t + skip_s]
+    if len(kept) < 2:
+        return 0.0
+    return (len(kept) - 1) / (kept[-1].t - kept[0].t)
+
+
+def virtual_rate(plan: str, cfg: RobotConfig, seconds: float = 3.0) -> float:
+    """Cycles/s of ``plan`` on virtual time against a fresh in-process emulator."""
+    chain = ServoChain.from_config(cfg, fast_sync_read=PRESETS[plan].fast_sync_read == "on")
+    register_emulator("bench", chain)
+    try:
+        result = run_actors(_graph("emulator:bench", plan), duration=seconds)
+    finally:
+        EMULATORS.pop("bench", None)
+    return _rate(result.messages("state", of=ServoStates))
+
+
+class _TimedOwner:
+    """Wraps the scheduler's port owner: wall time spent waiting out bus time, per call."""
+
+    def __init__(self, inner: PortOwner, waited: list[float]) -> None:
+        self._inner = inner
+        self._waited = waited
+
+    async def call(self, job: Callable[[DxlBus], T]) -> T:
+        box: list[float] = []
+
+        def timed(bus: DxlBus) -> T:
+            try:
+                return job(bus)
+            finally:
+                box.append(time.perf_counter())
+
+        try:
+            return await self._inner.call(timed)
+        finally:
+            if box:  # from the job's end to now: the sleep of its bus time (and other tasks)
+                self._waited[0] += time.perf_counter() - box[0]
+
+    def close(self) -> None:
+        self._inner.close()
+
+
+class TimedBusScheduler(BusScheduler):
+    """The scheduler with a stopwatch on its cycles: wall time less waits, per cycle."""
+
+    busy: ClassVar[list[float]] = [0.0]
+    waited: ClassVar[list[float]] = [0.0]
+    inside: ClassVar[list[float]] = [0.0]
+    """Time spent inside the emulator (the bench's timed ``transact`` adds to it)."""
+    cycles: ClassVar[list[int]] = [0]
+
+    def _open_owner(self) -> PortOwner:
+        return _TimedOwner(super()._open_owner(), self.waited)
+
+    async def _cycle(self, owner: PortOwner) -> None:
+        start, waited, inside = time.perf_counter(), self.waited[0], self.inside[0]
+        await super()._cycle(owner)
+        elapsed = time.perf_counter() - start
+        self.busy[0] += elapsed - (self.waited[0] - waited) - (self.inside[0] - inside)
+        self.cycles[0] += 1
+
+
+def cpu_per_cycle_ms(plan: str, cfg: RobotConfig, seconds: float = 2.0) -> float:
+    """Real-time ms of the bus path per cycle: the scheduler's cycle, less its waits and the
+    time spent inside the in-process emulator."""
+    chain = ServoChain.from_config(cfg)
+    inside = TimedBusScheduler.inside
+    transact = chain.transact
+
+    def timed(request: bytes, t: float) -> Any:
+        start = time.perf_counter()
+        try:
+            return transact(request, t)
+        finally:
+            inside[0] += time.perf_counter() - start
+
+    chain.transact = timed  # type: ignore[method-assign]
+    register_emulator("bench", chain)
+    TimedBusScheduler.busy[0] = 0.0
+    TimedBusScheduler.cycles[0] = 0
+    graph = _graph("emulator:bench", plan)
+    graph["actors"][0]["class"] = "whexar.bench.bus:TimedBusScheduler"
+
+    async def main() -> None:
+        # No message log: a log keeping every message grows the heap, and the
+        # garbage collector's passes over it would be billed to the cycles.
+        await Runtime(build_graph(graph)).run(duration=seconds)
+
+    try:
+        run_loop(main)
+    finally:
+        EMULATORS.pop("bench", None)
+    t = TimedBusScheduler
+    return t.busy[0] / max(1, t.cycles[0]) * 1e3
+
+
+@contextlib.contextmanager
+def emulator_process() -> Iterator[str]:
+    """``whexar emulate`` in real-time mode in another process; yields its pty path."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "whexar.cli", "emulate"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        first = proc.stdout.readline()
+        found = re.search(r"(/dev/\S+)", first)
+        if not found:
+            err = proc.stderr.read() if proc.stderr else ""
+            raise RuntimeError(f"whexar emulate did not print its pty: {first!r} {err}")
+        yield found.group(1)
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def realtime_rate(plan: str, seconds: float = 3.0) -> float:
+    """Cycles/s of ``plan`` on real time through the SDK over a pty to ``whexar emulate``."""
+    with emulator_process() as path:
+        result = run_actors(_graph(path, plan), duration=seconds, virtual=False)
+    return _rate(result.messages("state", of=ServoStates), skip_s=0.5)
+
+
+def run(progress: Progress = None, *, seconds: float = 3.0) -> Report:
+    """Measure every plan; ``progress`` receives a line per step."""
+    say = progress or (lambda _line: None)
+    cfg = RobotConfig()
+    timing = TimingModel(baudrate=cfg.bus.baudrate)
+    plans: list[PlanFigures] = []
+    for name in PLANS:
+        say(f"plan {name}: {seconds:g} s of virtual time against the emulator…")
+        limit, nbytes = plan_limit(PRESETS[name], cfg, timing)
+        hz = virtual_rate(name, cfg, seconds)
+        realtime = None
+        if name in ("full_feedback", "positioning") and os.name == "posix":
+            say(f"plan {name}: {seconds:g} s of real time over a pty to `whexar emulate`…")
+            realtime = realtime_rate(name, seconds)
+        plans.append(PlanFigures(name, hz, limit, nbytes, realtime))
+    cpu: dict[str, float] = {}
+    for name in ("full_feedback", "positioning"):
+        say(f"plan {name}: CPU per cycle on real time (in-process emulator)…")
+        cpu[name] = cpu_per_cycle_ms(name, cfg)
+    items: list[Figure] = []
+    for p in plans:
+        items.append(
+            Figure(
+                f"{p.name}_hz",
+                f"{p.name} (limit {p.limit_hz:.1f} Hz)",
+                p.hz,
+                "Hz",
+                SHARE_OF_LIMIT * p.limit_hz,
+                at_least=True,
+            )
+        )
+        if p.realtime_hz is not None:
+            items.append(
+                Figure(
+                    f"{p.name}_realtime_hz",
+                    f"{p.name}, real time over a pty",
+                    p.realtime_hz,
+                    "Hz",
+                    REALTIME_SHARE * p.limit_hz,
+                    at_least=True,
+                )
+            )
+    by_name = {p.name: p for p in plans}
+    items.append(
+        Figure(
+            "full_feedback_target_hz",
+            "full_feedback vs the thesis's 48 Hz",
+            by_name["full_feedback"].hz,
+            "Hz",
+            FULL_FEEDBACK_HZ,
+            at_least=True,
+        )
+    )
+    items.append(
+        Figure(
+            "positioning_target_hz",
+            "positioning vs the thesis's 80 Hz",
+            by_name["positioning"].hz,
+            "Hz",
+            POSITIONING_HZ,
+            at_least=True,
+        )
+    )
+    items.append(
+        Figure(
+            "full_feedback_cpu_ms",
+            "CPU per full_feedback cycle (median run)",
+            cpu["full_feedback"],
+            "ms",
+            CPU_TARGET_MS,
+        )
+    )
+    data = {
+        "plans": [
+            {
+                "name": p.name,
+                "hz": round(p.hz, 2),
+                "limit_hz": round(p.limit_hz, 2),
+                "bytes_per_cycle": round(p.bytes_per_cycle, 1),
+                **({"realtime_hz": round(p.realtime_hz, 2)} if p.realtime_hz is not None else {}),
+            }
+            for p in plans
+        ],
+        "cpu_ms_per_cycle": {k: round(v, 3) for k, v in cpu.items()},
+    }
+    return Report(
+        "bus",
+        items,
+        notes=[
+            "hz: virtual time, whole runtime, real SDK, in-process emulator; "
+            "limit_hz: the emulator's timing model for the same cycle",
+        ],
+        data=data,
+    )
