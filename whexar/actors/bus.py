@@ -315,6 +315,8 @@ class BusScheduler(Actor):
         self.cycle = 0
         self.counters = {"retries": 0, "timeouts": 0, "corrupt": 0, "clamped": 0, "bytes": 0}
         self.port_lost = False
+        self.lost = False
+        """Set with :class:`BusLost`: the cycle stops; only the safe stop touches the bus."""
 
     def _open_owner(self) -> PortOwner:
         name = self.params.port or self.cfg.bus.port
@@ -335,7 +337,9 @@ class BusScheduler(Actor):
                     known = ", ".join(EMULATORS) or "none registered"
                     raise DeviceGoneError(f"no emulated servo chain {key!r} ({known})")
                 chain = EMULATORS[key]
-            return InlinePortOwner(EmulatedPort(chain, now=self.clock.now), self.clock)
+            port = EmulatedPort(chain, now=self.clock.now)
+            port.setPortName(name)  # errors name the configured port, as a device's do
+            return InlinePortOwner(port, self.clock)
         latency = latency_timer_ms(name)
         if latency is not None and latency > 1:
             device = name.rsplit("/", 1)[-1]
@@ -587,13 +591,16 @@ class BusScheduler(Actor):
                 self._degrade(s, f"{s.failures} failed cycles in a row ({kind})")
 
     def _degrade(self, s: _Servo, reason: str) -> None:
-        s.degraded = True
         s.next_probe = self.now() + self.cfg.bus.probe_period_s
+        if s.degraded:  # a failed probe of a degraded servo: it stays degraded, no new event
+            return
+        s.degraded = True
         self.emit(ServoDegraded(t=self.now(), source=self.name, servo_id=s.id, reason=reason))
         if s.critical:
             self._lose(f"{s.name} lost: {reason}")
 
     def _lose(self, reason: str) -> None:
+        self.lost = True
         self.emit(BusLost(t=self.now(), source=self.name, reason=reason))
         self.request_safe_stop(reason)
 
@@ -618,7 +625,8 @@ class BusScheduler(Actor):
                 s.next_probe = now + self.cfg.bus.probe_period_s
                 await self._probe(owner, s)
 
-    async def _reboot(self, owner: PortOwner, s: _Servo) -> None:
+    async def _reboot(self, owner: PortOwner, s: _Servo) -> bool:
+        """Report, reboot and restore ``s``; True when its error cleared and it holds again."""
         bits = await owner.call(lambda bus: bus.read(s.id, _HW_ERROR))
         value = bits.value if bits.ok else 0
         self.emit(
@@ -634,13 +642,18 @@ class BusScheduler(Actor):
         self.emit(ServoRebooted(t=self.now(), source=self.name, servo_id=s.id, ok=reply.ok))
         after = await owner.call(lambda bus: bus.read(s.id, _HW_ERROR))
         if not after.ok or after.value:
-            why = comm_name(after.result) if not after.ok else ct.HardwareError(after.value)
+            why = (
+                comm_name(after.result)
+                if not after.ok
+                else ct.HardwareError(after.value).describe()
+            )
             self._degrade(s, f"hardware error persists after reboot ({why})")
-            return
+            return False
         if await self._restore(owner, s):
             self.emit(ServoRestored(t=self.now(), source=self.name, servo_id=s.id))
-        else:
-            self._degrade(s, "torque could not be re-enabled after reboot")
+            return True
+        self._degrade(s, "torque could not be re-enabled after reboot")
+        return False
 
     async def _restore(self, owner: PortOwner, s: _Servo) -> bool:
         """Write the servo's settings and goal again and enable its torque; True when it holds."""
@@ -668,11 +681,10 @@ class BusScheduler(Actor):
         reply = await owner.call(lambda bus: bus.ping(s.id))
         if not reply.ok:
             return
-        if reply.alert:
-            await self._reboot(owner, s)
-            if s.degraded and not (await owner.call(lambda bus: bus.ping(s.id))).ok:
-                return
-        if await self._restore(owner, s):
+        # A latched hardware error is rebooted first; the servo is back only if that cleared
+        # it (the reboot restores it), never while the error persists.
+        restored = await self._reboot(owner, s) if reply.alert else await self._restore(owner, s)
+        if restored:
             s.degraded = False
             s.failures = 0
             self.emit(ServoRecovered(t=self.now(), source=self.name, servo_id=s.id))
@@ -720,19 +732,21 @@ class BusScheduler(Actor):
             next_stats = self.now() + self.params.stats_period_s
             cap = self.plan.rate_hz
             next_cycle = self.now()
-            while True:
+            while not self.lost:
                 try:
                     await self._cycle(self.owner)
                 except DeviceGoneError as exc:
                     self.port_lost = True
                     self._lose(f"servo port lost: {exc}")
-                    await anyio.sleep_forever()
                 if self.now() >= next_stats:
                     await self._report()
                     next_stats += self.params.stats_period_s
                 if cap is not None:
                     next_cycle += 1.0 / cap
                     await self.clock.sleep_until(next_cycle)
+            # Lost: no more cycles (a restore could re-enable torque); the
+            # runtime's safe stop parks the servos, then cancels us here.
+            await anyio.sleep_forever()
         finally:
             with self.shielded():
                 await self._park(self.cfg.bus.on_stop)

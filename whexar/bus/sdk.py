@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any, Final, Protocol, TypeVar
 
 import anyio
+import anyio.lowlevel
 import dynamixel_sdk as dxl
 from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
 
@@ -266,6 +267,8 @@ class InlinePortOwner:
                 # Charge the bus time even when the job raised: the wire was busy.
                 with anyio.CancelScope(shield=True):
                     await self._clock.sleep(self._port.take_elapsed())
+                # Every wait above is shielded: deliver a pending cancellation here.
+                await anyio.lowlevel.checkpoint_if_cancelled()
 
     def close(self) -> None:
         with contextlib.suppress(Exception):
@@ -312,6 +315,9 @@ class ThreadPortOwner:
         # job it queued; the next job then finds the port free.
         with anyio.CancelScope(shield=True):
             result = await future
+        # The wait was shielded: deliver a pending cancellation now, or a
+        # caller that only ever awaits the port could never be stopped.
+        await anyio.lowlevel.checkpoint_if_cancelled()
         return result
 
     def close(self) -> None:
