@@ -334,3 +334,38 @@ def _config_with(**sections: dict[str, Any]) -> Any:
     path = Path(tempfile.mkdtemp()) / "whexar.toml"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize(
+    ("toml", "path", "says"),
+    [
+        (
+            '[bus.plan]\nreads = [{registers = ["present_positon"]}]\n',
+            "bus.plan.reads[0].registers",
+            "does not exist",
+        ),
+        ('[bus]\nplan = "fastest"\n', "bus.plan", "a preset (thesis, full_feedback"),
+        ("[bus.plan]\nreads = []\n", "bus.plan.reads", "at least one read"),
+        ('[joints.coxa]\nmodel = "MX-12"\n', "joints.coxa.model", "'MX-28', 'MX-64' or 'MX-106'"),
+    ],
+)
+def test_bad_bus_configuration_is_refused_before_any_byte(
+    chain: ServoChain, toml: str, path: str, says: str
+) -> None:
+    import tempfile
+    from pathlib import Path
+
+    file = Path(tempfile.mkdtemp()) / "whexar.toml"
+    file.write_text(toml)
+    seen: list[int] = []
+    chain.hooks.append(lambda _c, _t, packets: seen.append(len(packets)))
+    result = run(graph({"config": str(file)}), duration=1.0)
+    failed = result.events(ActorFailed)
+    assert failed
+    assert failed[0].phase == "start"
+    assert path in failed[0].error
+    assert says in failed[0].error
+    assert seen == []  # nothing reached the bus

@@ -35,7 +35,9 @@ from typing import Annotated, Any, Final, Literal
 from pydantic import (
     BaseModel,
     ConfigDict,
+    Discriminator,
     Field,
+    Tag,
     TypeAdapter,
     ValidationError,
     ValidationInfo,
@@ -307,6 +309,10 @@ def _check_legs(legs: Sequence[LegSpec], at: str) -> list[Problem]:
 # --------------------------------------------------------------------------- links
 
 
+_TAGS: Final = ("name", "table")
+"""Tags of ``BusSpec.plan``'s union, left out of a problem's key path."""
+
+
 class BusSpec(Section):
     """The Dynamixel bus behind the U2D2 adapter (5.3.6, 6.1.1)."""
 
@@ -320,7 +326,11 @@ class BusSpec(Section):
     accepts (it has no 4.5 Mbps)."""
     return_delay_time_us: int = Field(default=20, ge=0, le=508, multiple_of=2)
     """Return Delay Time; the register counts 2 µs units (thesis used 20 µs, 5.3.6)."""
-    plan: str | ReadPlan = "default"
+    plan: Annotated[
+        Annotated[str, Tag("name")] | Annotated[ReadPlan, Tag("table")],
+        # Tagged, so a bad table is reported as a table, not also as "not a string".
+        Discriminator(lambda v: "name" if isinstance(v, str) else "table"),
+    ] = "default"
     """A read plan: a preset's name (``whexar.bus.plan.PRESETS``) or a ``[bus.plan]`` table."""
     on_stop: Literal["torque_off", "hold"] = "torque_off"
     """The servos' state when the runtime stops: limp (default) or holding their goals."""
@@ -752,6 +762,8 @@ def problem_from_error(
     validated on its own, such as an actor's ``params``).
     """
     loc = tuple(error["loc"])
+    # The tag of the tagged union bus.plan (a preset's name or a table) is no key.
+    loc = tuple(p for i, p in enumerate(loc) if not (i and loc[i - 1] == "plan" and p in _TAGS))
     # pydantic locates a bad dict key as (..., key, "[key]"): name the key itself.
     key_itself = bool(loc) and loc[-1] == "[key]"
     if key_itself:

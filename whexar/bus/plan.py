@@ -63,11 +63,19 @@ class ReadPlan(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     name: str = "custom"
-    reads: Annotated[tuple[PlanRead, ...], Field(min_length=1)]
+    reads: tuple[PlanRead, ...]
     fast_sync_read: FastMode = "auto"
     """``auto``: try Fast Sync Read at start and after failures, fall back to Sync Read."""
     rate_hz: Annotated[float, Field(gt=0)] | None = None
     """Cap on the cycle rate; absent: as fast as the bus allows."""
+
+    @field_validator("reads")
+    @classmethod
+    def _some(cls, reads: tuple[PlanRead, ...]) -> tuple[PlanRead, ...]:
+        # Checked here, not with min_length, so one bad read is one problem.
+        if not reads:
+            raise ValueError("at least one read")
+        return reads
 
 
 _POSITIONING: Final = ("coxa", "femur", "tibia", "tarsus")
