@@ -369,3 +369,37 @@ def test_bad_bus_configuration_is_refused_before_any_byte(
     assert path in failed[0].error
     assert says in failed[0].error
     assert seen == []  # nothing reached the bus
+
+
+# --------------------------------------------------------------------------- real ports
+
+
+def test_scheduler_over_a_pty_in_real_time_runs_and_stops_cleanly() -> None:
+    """The thread-owned port path: real SDK, real serial I/O, real time, clean stop."""
+    from whexar.bus.pty import PtyEmulator
+
+    made = ServoChain.from_config(CFG, return_delay_us=20)
+    with PtyEmulator(made, realtime=False) as emulator:
+        result = run_actors(
+            graph({"port": emulator.path, "plan": "positioning"}),
+            duration=1.5,
+            virtual=False,
+            feeds=["goals"],
+        )
+    assert result.exit_code == 0
+    assert not result.events(ActorFailed)
+    states = result.messages("state", of=ServoStates)
+    assert len(states) > 10
+    assert len(states[-1].joints) == 24
+    stopped = [e for e in result.events() if getattr(e, "actor", None) == "bus"][-1]
+    assert getattr(stopped, "timed_out", True) is False
+    assert all(table(made, sid, "torque_enable") == 0 for sid in made.servos)
+
+
+def test_latency_timer_is_read_from_sysfs(tmp_path: Any) -> None:
+    from whexar.bus.sdk import latency_timer_ms
+
+    (tmp_path / "ttyUSB0").mkdir()
+    (tmp_path / "ttyUSB0" / "latency_timer").write_text("16\n")
+    assert latency_timer_ms("/dev/ttyUSB0", tmp_path) == 16
+    assert latency_timer_ms("/dev/pts/7", tmp_path) is None
