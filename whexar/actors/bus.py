@@ -43,6 +43,7 @@ by default, or holding their last goals.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final
@@ -100,6 +101,8 @@ _GOAL_POSITION = ct.MODELS["MX-64"].register("goal_position")
 _GOAL_VELOCITY = ct.MODELS["MX-64"].register("goal_velocity")
 _RETURN_DELAY = ct.MODELS["MX-64"].register("return_delay_time")
 _OPERATING_MODE = ct.MODELS["MX-64"].register("operating_mode")
+_pack_i32 = struct.Struct("<i").pack
+"""Goal Position/Velocity bytes (signed 32-bit, little-endian); goals are clamped first."""
 _MODE_VELOCITY: Final = 1
 _MODE_POSITION: Final = 3
 """Operating Mode (11): 1 velocity control (the wheel), 3 position control (e-manual)."""
@@ -477,9 +480,9 @@ class BusScheduler(Actor):
             if s.degraded or s.goal is None or s.goal == s.sent:
                 continue
             if s.endless:
-                vel[s.id] = _GOAL_VELOCITY.encode(s.goal)
+                vel[s.id] = _pack_i32(s.goal)
             else:
-                pos[s.id] = _GOAL_POSITION.encode(s.goal)
+                pos[s.id] = _pack_i32(s.goal)
             s.sent = s.goal
         return [(_GOAL_POSITION.address, 4, pos), (_GOAL_VELOCITY.address, 4, vel)]
 
@@ -520,7 +523,11 @@ class BusScheduler(Actor):
         errors: dict[int, int] = {}
         for (read, _), res in zip(due, outcome.reads, strict=True):
             for sid, data in res.data.items():
-                values.setdefault(sid, {}).update(read.block.decode(data))
+                decoded = read.block.decode(data)
+                if sid in values:
+                    values[sid].update(decoded)
+                else:
+                    values[sid] = decoded
             errors.update(res.errors)
         await self._publish(t, values, errors)
         self._account(outcome, values)
