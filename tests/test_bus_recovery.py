@@ -40,6 +40,7 @@ from whexar.bus.protocol import Instruction, Packet
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES, servo_id
 from whexar.testing import Harness, RunResult, run_actors
+from whexar.testing.bus import bus_graph
 
 CFG = RobotConfig()
 FAULT_PLANS = Path(__file__).resolve().parent.parent / "config" / "faults"
@@ -88,35 +89,12 @@ def inject(chain: ServoChain, *faults: Fault, seed: int = 0) -> FaultInjector:
 
 def graph(params: dict[str, Any] | None = None, *, wiggle: bool = False) -> dict[str, Any]:
     """Scheduler on ``emulator:test`` (stats 4× a second); goals from the harness or a wiggle."""
-    actors: list[dict[str, Any]] = [
-        {
-            "name": "bus",
-            "class": "whexar.actors.bus:BusScheduler",
-            "params": {"port": "emulator:test", "stats_period_s": 0.25, **(params or {})},
-            "inputs": {"goals": "goals"},
-            "outputs": {"state": "state", "health": "health", "stats": "stats"},
-        }
-    ]
-    if wiggle:
-        actors.append(
-            {
-                "name": "wiggle",
-                "class": "whexar.testing.bus:GoalWiggle",
-                "params": {},
-                "inputs": {"state": "state"},
-                "outputs": {"goals": "goals"},
-            }
-        )
-    return {
-        "runtime": {"restart": {"max_restarts": 0}},
-        "actors": actors,
-        "channels": {
-            "goals": {"message": "JointGoals", "policy": "queue"},
-            "state": {"message": "ServoStates", "policy": "latest"},
-            "health": {"message": "ServoHealth", "policy": "queue"},
-            "stats": {"message": "BusStats", "policy": "latest"},
-        },
-    }
+    return bus_graph(
+        "emulator:test",
+        {"stats_period_s": 0.25, **(params or {})},
+        wiggle={} if wiggle else None,
+        max_restarts=0,
+    )
 
 
 def run(
@@ -129,9 +107,7 @@ def run(
 
 
 def table(chain: ServoChain, sid: int, name: str) -> int:
-    servo = chain.servos[sid]
-    reg = servo.model.register(name)
-    return reg.decode(servo.read(reg.address, reg.size), reg.address)
+    return chain.servos[sid].register_value(name)
 
 
 def goal(leg: int, joint: int, q: float) -> JointGoals:

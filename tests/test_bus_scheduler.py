@@ -25,6 +25,7 @@ from whexar.bus.protocol import Instruction, Packet
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, servo_id
 from whexar.testing import Harness, RunResult, run_actors
+from whexar.testing.bus import bus_graph
 
 CFG = RobotConfig()
 FEMUR = JOINT_NAMES.index("femur")
@@ -44,35 +45,7 @@ def graph(
     params: dict[str, Any] | None = None, *, wiggle: dict[str, Any] | None = None
 ) -> dict[str, Any]:
     """Scheduler on ``emulator:test``; goals fed by the harness, or by a GoalWiggle."""
-    actors: list[dict[str, Any]] = [
-        {
-            "name": "bus",
-            "class": "whexar.actors.bus:BusScheduler",
-            "params": {"port": "emulator:test", **(params or {})},
-            "inputs": {"goals": "goals"},
-            "outputs": {"state": "state", "health": "health", "stats": "stats"},
-        }
-    ]
-    if wiggle is not None:
-        actors.append(
-            {
-                "name": "wiggle",
-                "class": "whexar.testing.bus:GoalWiggle",
-                "params": wiggle,
-                "inputs": {"state": "state"},
-                "outputs": {"goals": "goals"},
-            }
-        )
-    return {
-        "runtime": {"restart": {"max_restarts": 0}},
-        "actors": actors,
-        "channels": {
-            "goals": {"message": "JointGoals", "policy": "queue"},
-            "state": {"message": "ServoStates", "policy": "latest"},
-            "health": {"message": "ServoHealth", "policy": "queue"},
-            "stats": {"message": "BusStats", "policy": "latest"},
-        },
-    }
+    return bus_graph("emulator:test", params, wiggle=wiggle, max_restarts=0)
 
 
 def goal_writes(chain: ServoChain) -> list[dict[int, int]]:
@@ -100,9 +73,7 @@ def goal_writes(chain: ServoChain) -> list[dict[int, int]]:
 
 
 def table(chain: ServoChain, sid: int, name: str) -> int:
-    servo = chain.servos[sid]
-    reg = servo.model.register(name)
-    return reg.decode(servo.read(reg.address, reg.size), reg.address)
+    return chain.servos[sid].register_value(name)
 
 
 def goals(*items: tuple[int, int, float], t: float = 0.0, reflex: bool = False) -> JointGoals:

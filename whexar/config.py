@@ -30,7 +30,7 @@ import types
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Any, Final, Literal
+from typing import Annotated, Any, Final, Literal, Self
 
 from pydantic import (
     BaseModel,
@@ -81,6 +81,24 @@ class Section(BaseModel):
     def problems(self, at: str) -> list[Problem]:
         """Relational problems inside this section; ``at`` is its key path."""
         return []
+
+
+class CheckedSection(Section):
+    """A document root that checks its own relations when built directly in code.
+
+    The loaders (:func:`load_config`, ``parse_fault_plan``) validate with
+    ``context={"defer_relations": True}`` and collect :meth:`problems` with
+    their key paths themselves; anything else gets them as one ValueError.
+    """
+
+    @model_validator(mode="after")
+    def _relations(self, info: ValidationInfo) -> Self:
+        if isinstance(info.context, dict) and info.context.get("defer_relations"):
+            return self
+        found = self.problems("")
+        if found:
+            raise ValueError("; ".join(str(p) for p in found))
+        return self
 
 
 # --------------------------------------------------------------------------- robot & body
@@ -569,7 +587,7 @@ def _default_stances() -> dict[str, StanceSpec]:
 # --------------------------------------------------------------------------- the whole robot
 
 
-class RobotConfig(Section):
+class RobotConfig(CheckedSection):
     """Everything physical or tunable about WHexaR. ``RobotConfig()`` is the thesis robot."""
 
     schema_version: Literal[1] = 1
@@ -587,17 +605,6 @@ class RobotConfig(Section):
     fsr: FSRSpec = FSRSpec()
     gait_selector: GaitSelectorSpec = GaitSelectorSpec()
     stances: dict[str, StanceSpec] = Field(default_factory=_default_stances)
-
-    @model_validator(mode="after")
-    def _relations(self, info: ValidationInfo) -> RobotConfig:
-        # load_config() collects relational problems itself, section by
-        # section; code that builds a RobotConfig directly is checked here.
-        if isinstance(info.context, dict) and info.context.get("defer_relations"):
-            return self
-        found = self.problems("")
-        if found:
-            raise ValueError("; ".join(str(p) for p in found))
-        return self
 
     def problems(self, at: str = "") -> list[Problem]:
         """Every relational problem of the whole configuration."""

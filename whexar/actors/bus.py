@@ -71,6 +71,7 @@ from whexar.actors.messages import (
 )
 from whexar.bus import control_table as ct
 from whexar.bus.plan import PlanRead, ReadPlan, resolve_plan
+from whexar.bus.protocol import ALERT, sync_read_bytes, sync_write_bytes
 from whexar.bus.sdk import (
     COMM_SUCCESS,
     LATENCY_FIX,
@@ -187,11 +188,6 @@ class _Outcome:
     write_results: list[int] = field(default_factory=list)
 
 
-def _read_bytes(n: int, length: int, fast: bool) -> int:
-    # Request 14 + N; response N·(11 + X), or 8 + N·(X + 4) for Fast Sync Read (notes).
-    return 14 + n + (8 + n * (length + 4) if fast else n * (11 + length))
-
-
 def _cycle_job(
     requests: Sequence[_Request],
     fast: bool,
@@ -209,7 +205,7 @@ def _cycle_job(
             attempts = 0
             while remaining:
                 res = bus.sync_read(remaining, req.start, req.length, fast=use_fast)
-                out.bytes += _read_bytes(len(remaining), req.length, use_fast)
+                out.bytes += sum(sync_read_bytes(len(remaining), req.length, fast=use_fast))
                 merged.data.update(res.data)
                 merged.errors.update(res.errors)
                 if res.ok:
@@ -234,7 +230,7 @@ def _cycle_job(
         for start, length, values in writes:
             if values:
                 out.write_results.append(bus.sync_write(start, length, values))
-                out.bytes += 14 + len(values) * (1 + length)
+                out.bytes += sync_write_bytes(len(values), length)
         return out
 
     return job
@@ -242,8 +238,8 @@ def _cycle_job(
 
 def _enable_job(servos: Sequence[_Servo]) -> Callable[[DxlBus], SyncReadResult]:
     """Write each goal (so torque-on holds still), torque on, and read Torque Enable back."""
-    pos = {s.id: _GOAL_POSITION.encode(s.goal or 0) for s in servos if not s.endless}
-    vel = {s.id: _GOAL_VELOCITY.encode(s.goal or 0) for s in servos if s.endless}
+    pos = {s.id: _pack_i32(s.goal or 0) for s in servos if not s.endless}
+    vel = {s.id: _pack_i32(s.goal or 0) for s in servos if s.endless}
     ids = [s.id for s in servos]
 
     def job(bus: DxlBus) -> SyncReadResult:
@@ -317,6 +313,8 @@ class BusScheduler(Actor):
         self.fast_streak = 0
         self.cycle = 0
         self.counters = {"retries": 0, "timeouts": 0, "corrupt": 0, "clamped": 0, "bytes": 0}
+        # Return Delay Time register value (2 µs units), written at start and on restore.
+        self.rdt = ct.return_delay_units(self.cfg.bus.return_delay_time_us * 1e-6)
         self.port_lost = False
         self.lost = False
         """Set with :class:`BusLost`: the cycle stops; only the safe stop touches the bus."""
@@ -371,7 +369,7 @@ class BusScheduler(Actor):
         ]
         if wrong:
             raise DeviceError("servo model mismatch: " + "; ".join(wrong))
-        rdt = ct.return_delay_units(self.cfg.bus.return_delay_time_us * 1e-6)
+        rdt = self.rdt
 
         def configure(bus: DxlBus) -> list[str]:
             problems = []
@@ -380,7 +378,7 @@ class BusScheduler(Actor):
                 mode = _MODE_VELOCITY if s.endless else _MODE_POSITION
                 for reg, value in ((_RETURN_DELAY, rdt), (_OPERATING_MODE, mode)):
                     reply = bus.write(s.id, reg, value)
-                    if not reply.ok or reply.error & 0x7F:
+                    if not reply.ok or reply.error & ~ALERT:
                         problems.append(f"{s.name}: writing {reg.name} = {value} failed")
             return problems
 
@@ -552,7 +550,7 @@ class BusScheduler(Actor):
                     None if pos is None else ct.ticks_to_rad(pos),
                     None if vel is None else ct.velocity_to_rad_s(vel),
                     None if cur is None else ct.current_to_a(cur, s.model),
-                    bool(errors.get(sid, 0) & 0x80),
+                    bool(errors.get(sid, 0) & ALERT),
                 )
             )
         await self.state.send(
@@ -619,7 +617,7 @@ class BusScheduler(Actor):
     ) -> None:
         # Hardware errors: the Alert bit of any status, or a non-zero register 70.
         suspects = sorted(
-            {sid for sid, err in errors.items() if err & 0x80}
+            {sid for sid, err in errors.items() if err & ALERT}
             | {sid for sid, regs in values.items() if regs.get("hardware_error_status")}
         )
         for sid in suspects:
@@ -664,7 +662,7 @@ class BusScheduler(Actor):
 
     async def _restore(self, owner: PortOwner, s: _Servo) -> bool:
         """Write the servo's settings and goal again and enable its torque; True when it holds."""
-        rdt = ct.return_delay_units(self.cfg.bus.return_delay_time_us * 1e-6)
+        rdt = self.rdt
         mode = _MODE_VELOCITY if s.endless else _MODE_POSITION
         goal_reg = _GOAL_VELOCITY if s.endless else _GOAL_POSITION
 

@@ -40,13 +40,15 @@ from whexar.actors.messages import ServoStates
 from whexar.actors.runtime import Runtime
 from whexar.actors.wiring import build_graph
 from whexar.bench import Figure, Progress, Report
-from whexar.bus.control_table import block, return_delay_units
+from whexar.bus.control_table import block
 from whexar.bus.emulator import ServoChain, TimingModel
 from whexar.bus.plan import PRESETS, ReadPlan
+from whexar.bus.protocol import sync_read_bytes, sync_write_bytes
 from whexar.bus.sdk import DxlBus, PortOwner
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.testing import run_actors
+from whexar.testing.bus import bus_graph
 
 PLANS = ("thesis", "full_feedback", "fast_full_feedback", "positioning", "default")
 SHARE_OF_LIMIT = 0.95
@@ -70,12 +72,12 @@ class PlanFigures:
 
 def plan_limit(plan: ReadPlan, cfg: RobotConfig, timing: TimingModel) -> tuple[float, float]:
     """(cycles/s, bytes per cycle) of ``plan`` on a bus that does nothing else."""
-    rdt = return_delay_units(cfg.bus.return_delay_time_us * 1e-6) * 2e-6
+    rdt = cfg.bus.return_delay_time_us * 1e-6
     fast = plan.fast_sync_read == "on"
     n_servos = len(LEG_NAMES) * len(JOINT_NAMES)
     wheels = len(LEG_NAMES)
     base = timing.sync_write_s(n_servos - wheels, 4) + timing.sync_write_s(wheels, 4)
-    nbytes = 2 * 14 + n_servos * 5.0
+    nbytes = float(sync_write_bytes(n_servos - wheels, 4) + sync_write_bytes(wheels, 4))
     busy_per_s = 0.0
     slow_bytes_per_s = 0.0
     for read in plan.reads:
@@ -83,39 +85,18 @@ def plan_limit(plan: ReadPlan, cfg: RobotConfig, timing: TimingModel) -> tuple[f
         length = block(read.registers).length
         if read.rate_hz is None:
             base += timing.sync_read_s(n, length, rdt, fast)
-            nbytes += 14 + n + (8 + n * (length + 4) if fast else n * (11 + length))
+            nbytes += sum(sync_read_bytes(n, length, fast=fast))
         else:
             k = min(n, read.chunk or n)
             busy_per_s += read.rate_hz * timing.sync_read_s(k, length, rdt, fast)
-            slow_bytes_per_s += read.rate_hz * (14 + k + k * (11 + length))
+            slow_bytes_per_s += read.rate_hz * sum(sync_read_bytes(k, length, fast=fast))
     # Slow reads take their share of every second; the cycles share the rest.
     hz = (1.0 - busy_per_s) / base
     return hz, nbytes + slow_bytes_per_s / hz
 
 
-def _graph(port: str, plan: str, cycles: int | None = None) -> dict[str, Any]:
-    return {
-        "actors": [
-            {
-                "name": "bus",
-                "class": "whexar.actors.bus:BusScheduler",
-                "params": {"port": port, "plan": plan},
-                "inputs": {"goals": "goals"},
-                "outputs": {"state": "state"},
-            },
-            {
-                "name": "wiggle",
-                "class": "whexar.testing.bus:GoalWiggle",
-                "params": {"stop_after_cycles": cycles} if cycles else {},
-                "inputs": {"state": "state"},
-                "outputs": {"goals": "goals"},
-            },
-        ],
-        "channels": {
-            "goals": {"message": "JointGoals", "policy": "queue"},
-            "state": {"message": "ServoStates", "policy": "latest"},
-        },
-    }
+def _graph(port: str, plan: str) -> dict[str, Any]:
+    return bus_graph(port, {"plan": plan}, wiggle={}, outputs=("state",))
 
 
 def _rate(states: list[ServoStates], skip_s: float = 0.2) -> float:

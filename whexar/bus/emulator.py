@@ -67,6 +67,8 @@ from whexar.bus.protocol import (
     parse_sync_read_params,
     parse_sync_write_params,
     parse_write_params,
+    sync_read_bytes,
+    sync_write_bytes,
 )
 from whexar.errors import UsageError
 from whexar.robot import JOINT_NAMES
@@ -143,14 +145,12 @@ class TimingModel:
         Status Packet ... as if one DYNAMIXEL has returned a single Status
         Packet", e-manual). The per-byte host cost is kept per byte received.
         """
-        request = 14 + n
-        if fast:
-            return self.read_s(request, 1, 8 + n * (data_bytes + 4), return_delay_s)
-        return self.read_s(request, n, n * (11 + data_bytes), return_delay_s)
+        request, response = sync_read_bytes(n, data_bytes, fast=fast)
+        return self.read_s(request, 1 if fast else n, response, return_delay_s)
 
     def sync_write_s(self, n: int, data_bytes: int) -> float:
         """Analytic Sync Write of ``data_bytes`` to each of ``n`` servos: 14 + n·(1 + X) bytes."""
-        return self.write_s(14 + n * (1 + data_bytes))
+        return self.write_s(sync_write_bytes(n, data_bytes))
 
 
 DEFAULT_TIMING: Final = TimingModel()

@@ -85,10 +85,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Final, Literal
 
-from pydantic import Field, ValidationError, ValidationInfo, model_validator
+from pydantic import Field, ValidationError
 
 from whexar.bus.control_table import HardwareError
-from whexar.config import SERVO_ID_RANGE, Section, problem_from_error, read_toml
+from whexar.config import SERVO_ID_RANGE, CheckedSection, Section, problem_from_error, read_toml
 from whexar.errors import MISSING, ConfigError, Problem
 
 if TYPE_CHECKING:
@@ -166,7 +166,7 @@ _ONLY_FOR: Final[Mapping[str, frozenset[str]]] = {
 ServoId = Annotated[int, Field(ge=SERVO_ID_RANGE[0], le=SERVO_ID_RANGE[1])]
 
 
-class Fault(Section):
+class Fault(CheckedSection):
     """One fault: what goes wrong, to which servos, when, and for how long."""
 
     kind: FaultKind
@@ -186,17 +186,6 @@ class Fault(Section):
     """hardware_error: the Hardware Error Status bits raised."""
     volts: float | None = Field(default=None, gt=0, le=30, allow_inf_nan=False)
     """voltage_sag: the input voltage during the sag, V."""
-
-    @model_validator(mode="after")
-    def _relations(self, info: ValidationInfo) -> Fault:
-        # parse_fault_plan() collects these problems itself with their key
-        # paths; a Fault built directly in code is checked here.
-        if isinstance(info.context, dict) and info.context.get("defer_relations"):
-            return self
-        found = self.problems("")
-        if found:
-            raise ValueError("; ".join(str(p) for p in found))
-        return self
 
     def problems(self, at: str) -> list[Problem]:
         """Fields that do not fit together: triggers, and fields of another kind."""

@@ -246,6 +246,21 @@ def write_params(start: int, data: bytes) -> bytes:
     return _u16(start) + bytes(data)
 
 
+def sync_read_bytes(n: int, data_bytes: int, *, fast: bool = False) -> tuple[int, int]:
+    """(request, response) bytes of a (Fast) Sync Read of ``data_bytes`` from ``n`` servos.
+
+    Request 14 + N; response N·(11 + X) status packets, or one Fast Sync Read
+    packet of 8 + N·(X + 4) (e-manual, Protocol 2.0; the notes' table).
+    """
+    response = 8 + n * (data_bytes + 4) if fast else n * (11 + data_bytes)
+    return 14 + n, response
+
+
+def sync_write_bytes(n: int, data_bytes: int) -> int:
+    """Bytes of a Sync Write of ``data_bytes`` to each of ``n`` servos: 14 + N·(1 + X)."""
+    return 14 + n * (1 + data_bytes)
+
+
 def sync_read_params(start: int, length: int, ids: Iterable[int]) -> bytes:
     """Parameters of (Fast) SYNC_READ: start, length, then one ID per servo."""
     id_list = list(ids)

@@ -45,16 +45,13 @@ from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
 
 from whexar.actors.clock import Clock
 from whexar.bus.control_table import Register
-from whexar.bus.protocol import crc16
+from whexar.bus.protocol import ALERT, crc16
 from whexar.errors import DeviceGoneError
 
 T = TypeVar("T")
 
 COMM_SUCCESS: Final[int] = dxl.COMM_SUCCESS
-COMM_RX_TIMEOUT: Final[int] = dxl.COMM_RX_TIMEOUT
 COMM_RX_CORRUPT: Final[int] = dxl.COMM_RX_CORRUPT
-ALERT_BIT = 0x80
-"""ERR bit 7 of a status packet: Hardware Error Status is non-zero (e-manual, Protocol 2.0)."""
 
 
 def comm_name(result: int) -> str:
@@ -99,7 +96,7 @@ class Reply:
     @property
     def alert(self) -> bool:
         """The servo's Hardware Error Status is set."""
-        return bool(self.error & ALERT_BIT)
+        return bool(self.error & ALERT)
 
 
 @dataclass(slots=True)

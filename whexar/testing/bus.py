@@ -1,4 +1,4 @@
-"""Actors that exercise the bus scheduler: a goal source that answers every cycle.
+"""The bus scheduler under test: a goal source that answers every cycle, and its graph.
 
 :class:`GoalWiggle` listens to :class:`~whexar.actors.messages.ServoStates`
 and answers each cycle with goals for every joint: a slow sine around a
@@ -11,6 +11,8 @@ servos.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from pydantic import Field
 
@@ -60,3 +62,54 @@ class GoalWiggle(Actor):
             if p.stop_after_cycles is not None and answered >= p.stop_after_cycles:
                 self.request_stop(f"answered {answered} cycles")
                 return
+
+
+BUS_CHANNELS: dict[str, dict[str, str]] = {
+    "goals": {"message": "JointGoals", "policy": "queue"},
+    "state": {"message": "ServoStates", "policy": "latest"},
+    "health": {"message": "ServoHealth", "policy": "queue"},
+    "stats": {"message": "BusStats", "policy": "latest"},
+}
+"""The scheduler's channels: goals queue up (latest per joint wins inside it), state is latest."""
+
+
+def bus_graph(
+    port: str,
+    params: Mapping[str, Any] | None = None,
+    *,
+    wiggle: Mapping[str, Any] | None = None,
+    outputs: Sequence[str] = ("state", "health", "stats"),
+    max_restarts: int | None = None,
+) -> dict[str, Any]:
+    """A wiring document: a ``BusScheduler`` on ``port`` with ``params``.
+
+    With ``wiggle`` (a :class:`GoalWiggle`'s params) a goal source answers
+    every cycle; without, the ``goals`` channel is left for a harness to feed.
+    ``outputs`` picks the scheduler's wired outputs (``state`` at least).
+    """
+    actors: list[dict[str, Any]] = [
+        {
+            "name": "bus",
+            "class": "whexar.actors.bus:BusScheduler",
+            "params": {"port": port, **(params or {})},
+            "inputs": {"goals": "goals"},
+            "outputs": {name: name for name in outputs},
+        }
+    ]
+    if wiggle is not None:
+        actors.append(
+            {
+                "name": "wiggle",
+                "class": "whexar.testing.bus:GoalWiggle",
+                "params": dict(wiggle),
+                "inputs": {"state": "state"},
+                "outputs": {"goals": "goals"},
+            }
+        )
+    doc: dict[str, Any] = {
+        "actors": actors,
+        "channels": {name: BUS_CHANNELS[name] for name in ("goals", *outputs)},
+    }
+    if max_restarts is not None:
+        doc["runtime"] = {"restart": {"max_restarts": max_restarts}}
+    return doc
