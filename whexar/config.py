@@ -376,6 +376,19 @@ class BusSpec(Section):
         return value
 
 
+class AccelerometerSpec(Section):
+    """The board's optional analog accelerometer (``accx/accy/accz``), read in ADC counts.
+
+    Defaults: an ADXL335 on 3.3 V read against the 5 V reference. Its zero-g
+    output is half its supply and its sensitivity is ratiometric, 300 mV/g at
+    3 V (ADXL335 datasheet, Rev. B), so 1.65 V = 337.6 counts and 330 mV/g =
+    67.5 counts/g.
+    """
+
+    zero_g_counts: tuple[Finite, Finite, Finite] = (337.6, 337.6, 337.6)
+    counts_per_g: tuple[Positive, Positive, Positive] = (67.5, 67.5, 67.5)
+
+
 class SensorBoardSpec(Section):
     """The ATmega2560 sensor board on its serial line (5.4, 6.1.2, 6.1.5)."""
 
@@ -385,7 +398,15 @@ class SensorBoardSpec(Section):
     sample_rate_hz: Positive = 50.0
     """ADC sampling of the IR and FSR inputs (6.1.2, 6.1.5)."""
     frame_rate_hz: float = Field(default=20.0, ge=10.0, le=50.0, allow_inf_nan=False)
-    """Frames sent to the host: 20 Hz in 5.4 (10 Hz in 6.1.5)."""
+    """Frames sent to the host: 20 Hz in 5.4 (10 Hz in 6.1.5); the reader tells the board."""
+    protocol: Literal["checked", "thesis"] = "checked"
+    """``checked``: frames must carry ``seq`` and ``crc``; ``thesis``: the plain 5.4 frame
+    is accepted too (firmware/PROTOCOL.md)."""
+    stale_after_frames: float = Field(default=3.0, ge=1.0, allow_inf_nan=False)
+    """The link is stale when no valid frame arrived for this many frame periods."""
+    reconnect_period_s: Positive = 0.5
+    """How often a vanished serial device is looked for again."""
+    accelerometer: AccelerometerSpec = AccelerometerSpec()
 
     def problems(self, at: str) -> list[Problem]:
         if self.frame_rate_hz > self.sample_rate_hz:
@@ -453,6 +474,24 @@ class FSRSpec(Section):
                 )
             ]
         return []
+
+
+class ImuSpec(Section):
+    """The LSM9DS1 IMU on the Raspberry Pi's I²C bus (5.3.4, 5.4)."""
+
+    enabled: bool = True
+    i2c_bus: int = Field(default=1, ge=0)
+    """``/dev/i2c-N``: bus 1 is the Pi's header pins 3 and 5."""
+    address: int = Field(default=0x6B, ge=0x03, le=0x77)
+    """Accelerometer/gyroscope address: 0x6B (SDO_AG high, breakout default) or 0x6A."""
+    rate_hz: float = Field(default=50.0, gt=0, le=952, allow_inf_nan=False)
+    """Samples per second read by the host (the sensor runs at the next ODR above)."""
+    accel_range_g: Literal[2, 4, 8, 16] = 2
+    """Accelerometer full scale (LSM9DS1 datasheet, Table 3)."""
+    gyro_range_dps: Literal[245, 500, 2000] = 245
+    """Gyroscope full scale (LSM9DS1 datasheet, Table 3)."""
+    stale_after_s: Positive = 0.1
+    """The IMU link is stale when no sample was read for this long."""
 
 
 # --------------------------------------------------------------------------- gait selection
@@ -603,6 +642,7 @@ class RobotConfig(CheckedSection):
     sensor_board: SensorBoardSpec = SensorBoardSpec()
     ir: IRSpec = IRSpec()
     fsr: FSRSpec = FSRSpec()
+    imu: ImuSpec = ImuSpec()
     gait_selector: GaitSelectorSpec = GaitSelectorSpec()
     stances: dict[str, StanceSpec] = Field(default_factory=_default_stances)
 

@@ -323,3 +323,145 @@ class BusLost(Event):
     """The bus can no longer drive the robot (port gone, a critical servo lost)."""
 
     reason: str
+
+
+# --------------------------------------------------------------------------- sensors
+# The sensor board (ATmega2560, firmware/PROTOCOL.md) and the IMU. Every
+# message carries the frame's or sample's sequence number; ``t`` is when it
+# was received (the runtime clock), which is when it is valid to within one
+# sample period.
+
+
+@message
+class SensorFrame(Message):
+    """One decoded frame of the sensor board: raw counts and their conversions.
+
+    A group the frame did not carry is ``None``. ``seq`` is ``None`` for a
+    plain thesis frame. ``missed`` counts frames lost just before this one.
+    Distances are metres, ``math.inf`` when nothing is within range; tilt
+    angles are radians (eq. 5.6–5.7).
+    """
+
+    seq: int | None
+    ir_counts: tuple[int, int] | None
+    ir_distances_m: tuple[float, float] | None
+    fsr_counts: tuple[int, int, int, int, int, int] | None
+    contacts: tuple[bool, bool, bool, bool, bool, bool] | None
+    acc_counts: tuple[int, int, int] | None
+    roll_rad: float | None
+    pitch_rad: float | None
+    missed: int = 0
+
+
+@message
+class ObstacleRanges(Message):
+    """Distances (m) seen by the IR rangefinders on the right and left front legs (eq. 5.5).
+
+    ``math.inf``: nothing within ``ir.max_distance_mm``; nearer than
+    ``ir.min_distance_mm`` reads as that minimum (the sensor's output folds
+    back below its nearest calibrated distance, 5.3.5).
+    """
+
+    seq: int | None
+    counts: tuple[int, int]
+    distances_m: tuple[float, float]
+
+
+@message
+class LegLoads(Message):
+    """The force sensor of each leg (raw ADC counts, 5.3.3) and its contact flag (hysteresis)."""
+
+    seq: int | None
+    counts: tuple[int, int, int, int, int, int]
+    contacts: tuple[bool, bool, bool, bool, bool, bool]
+
+
+@message
+class BodyTilt(Message):
+    """Body roll and pitch (rad) from a static acceleration (eq. 5.6–5.7).
+
+    ``sensor`` says which accelerometer: ``"board"`` (the sensor board's
+    analog one) or ``"imu"`` (the LSM9DS1); ``accel_g`` is the reading in g
+    that gave the angles.
+    """
+
+    seq: int | None
+    sensor: str
+    roll_rad: float
+    pitch_rad: float
+    accel_g: tuple[float, float, float]
+
+
+@message
+class ImuSample(Message):
+    """One reading of the IMU: acceleration (g) and angular rate (deg/s) in its own axes."""
+
+    seq: int
+    accel_g: tuple[float, float, float]
+    gyro_dps: tuple[float, float, float]
+
+
+@message
+class SensorStats(Message):
+    """Counters of a sensor link since its reader started."""
+
+    link: str
+    frames: int
+    rejected: int
+    missed: int
+    unknown_keys: int
+    garbage_bytes: int
+    reconnects: int
+
+
+@message
+class SensorLinkUp(Event):
+    """The sensor link ``link`` (a serial port, an I²C device) is open."""
+
+    link: str
+
+
+@message
+class SensorLinkDown(Event):
+    """The sensor link ``link`` went away (``reason``); the reader keeps trying to reopen it."""
+
+    link: str
+    reason: str
+
+
+@message
+class SensorLinkStale(Event):
+    """No valid data on ``link`` for ``silent_s``; readings are old from now on."""
+
+    link: str
+    silent_s: float
+    last_seq: int | None
+
+
+@message
+class SensorLinkFresh(Event):
+    """Valid data on ``link`` again after it was stale for ``silent_s``."""
+
+    link: str
+    silent_s: float
+
+
+@message
+class SensorFrameGap(Event):
+    """Frames were lost on ``link``: ``missed`` before ``seq`` (``restarted``: the board reset)."""
+
+    link: str
+    expected: int
+    seq: int
+    missed: int
+    restarted: bool
+
+
+@message
+class SensorFrameRejected(Event):
+    """A frame on ``link`` was discarded (``reason``); ``excerpt`` shows its start, escaped."""
+
+    link: str
+    reason: str
+    size: int
+    excerpt: str
