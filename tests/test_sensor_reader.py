@@ -1,0 +1,298 @@
+"""The sensor reader actor on virtual time, against the in-process sensor board.
+
+Each test registers a :class:`SensorBoardEmulator` (the firmware's arithmetic, frame for
+frame, each frame arriving when its last byte would) and runs the real
+:class:`~whexar.actors.sensors.SensorReader`, then checks what it published and reported.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from whexar.actors.messages import (
+    ActorFailed,
+    BodyTilt,
+    LegLoads,
+    ObstacleRanges,
+    SensorFrame,
+    SensorFrameGap,
+    SensorFrameRejected,
+    SensorLinkDown,
+    SensorLinkFresh,
+    SensorLinkStale,
+    SensorLinkUp,
+    SensorStats,
+)
+from whexar.actors.sensors import BOARD_EMULATORS, register_board
+from whexar.bus.board_emulator import (
+    SensorBoardEmulator,
+    counts_for_acceleration,
+    counts_for_distance,
+)
+from whexar.bus.sensor_frame import encode_frame
+from whexar.config import RobotConfig
+from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+from whexar.testing import Harness, RunResult, run_actors
+from whexar.testing.sensors import sensor_graph
+
+CFG = RobotConfig()
+PERIOD = 1.0 / CFG.sensor_board.frame_rate_hz
+WIRE_S_PER_BYTE = 10 / 1_000_000
+
+
+@pytest.fixture(autouse=True)
+def _clean_registry() -> Iterator[None]:
+    yield
+    BOARD_EMULATORS.clear()
+
+
+def board(name: str = "b", **kw: object) -> SensorBoardEmulator:
+    emulator = SensorBoardEmulator(**kw)  # type: ignore[arg-type]
+    register_board(name, emulator)
+    return emulator
+
+
+def run(duration: float | None = None, scenario: object = None, **params: object) -> RunResult:
+    return run_actors(
+        sensor_graph("emulator:b", params),
+        duration=duration,
+        scenario=scenario,  # type: ignore[arg-type]
+    )
+
+
+def test_frames_arrive_at_the_frame_rate_with_consecutive_seq() -> None:
+    board()
+    result = run(duration=2.0)
+    frames = result.messages("frames", of=SensorFrame)
+    assert [f.seq for f in frames] == list(range(len(frames)))
+    assert len(frames) == 39  # frames at 0.05 … 1.95 s: the one due at 2.0 s lands after
+    # Stamped when the last byte arrived: the frame time plus its wire time.
+    first = frames[0]
+    size = len(encode_frame(seq=0, ir=first.ir_counts, acc=first.acc_counts, fsr=first.fsr_counts))
+    assert first.t == pytest.approx(PERIOD + size * WIRE_S_PER_BYTE, abs=1e-9)
+    gaps = [b.t - a.t for a, b in itertools.pairwise(frames)]
+    assert max(gaps) == pytest.approx(PERIOD, abs=1e-4)
+    assert result.events(of=SensorLinkUp)
+    assert not result.events(of=SensorFrameRejected)
+    assert not result.events(of=SensorLinkStale)
+
+
+def test_ir_distances_follow_eq_5_5_and_the_range_limits() -> None:
+    near = counts_for_distance(0.40, CFG.ir.k_cm, CFG.ir.exponent)
+    board(counts={"ir1": near, "ir2": 1000})  # 1000 counts: nearer than 10 cm
+    result = run(duration=0.5)
+    last = result.messages("ranges", of=ObstacleRanges)[-1]
+    assert last.counts == (near, 1000)
+    assert last.distances_m[0] == pytest.approx(ir_distance(near), rel=1e-12)
+    assert last.distances_m[0] == pytest.approx(0.40, abs=0.005)  # one count's quantisation
+    assert last.distances_m[1] == CFG.ir.min_distance_mm / 1000
+
+    BOARD_EMULATORS.clear()
+    board(counts={"ir1": 60, "ir2": 0})  # beyond 150 cm; no reflection at all
+    far = run(duration=0.5).messages("ranges", of=ObstacleRanges)[-1]
+    assert far.distances_m == (math.inf, math.inf)
+
+
+def test_contact_flags_have_hysteresis() -> None:
+    on, off = CFG.fsr.contact_on_counts, CFG.fsr.contact_off_counts
+    mid = (on + off) // 2
+    # Leg 2's load rises through both thresholds, then falls through them,
+    # each level held 0.5 s; the flag expected at the end of each level:
+    ramp = [(0, False), (off, False), (mid, False), (on, True), (mid, True), (off, True)]
+    ramp += [(off - 1, False), (0, False)]
+
+    def script(t: float) -> dict[str, int]:
+        return {"fsr2": ramp[min(int(t / 0.5), len(ramp) - 1)][0]}
+
+    board(script=script)
+    loads = run(duration=4.1).messages("loads", of=LegLoads)
+    for i, (counts, flag) in enumerate(ramp):
+        (at_end,) = [m for m in loads if abs(m.t - 0.5 * (i + 1)) < 0.01]
+        assert at_end.counts[2] == counts
+        assert at_end.contacts[2] is flag, (i, counts)
+    # Every message obeys the rule on the counts it carries.
+    state = False
+    for msg in loads:
+        c = msg.counts[2]
+        state = True if c >= on else False if c < off else state
+        assert msg.contacts == (False, False, state, False, False, False)
+
+
+def test_tilt_from_the_board_accelerometer() -> None:
+    acc = CFG.sensor_board.accelerometer
+    gravity = (math.sin(0.2), math.sin(-0.1), math.cos(0.2) * math.cos(0.1))
+    counts = counts_for_acceleration(gravity, acc.zero_g_counts, acc.counts_per_g)
+    board(counts=dict(zip(("accx", "accy", "accz"), counts, strict=True)))
+    tilt = run(duration=0.5).messages("tilt", of=BodyTilt)[-1]
+    assert tilt.sensor == "board"
+    want = tilt_from_acceleration(*gravity)
+    # One ADC count is 1/67.5 g: about 0.015 rad at worst near level.
+    assert tilt.roll_rad == pytest.approx(want[0], abs=0.02)
+    assert tilt.pitch_rad == pytest.approx(want[1], abs=0.02)
+    assert tilt.roll_rad == pytest.approx(math.atan2(*tilt.accel_g[::2]))
+
+
+def test_board_without_accelerometer_publishes_no_tilt() -> None:
+    board(accelerometer=False)
+    result = run(duration=0.5)
+    assert result.messages("frames", of=SensorFrame)[-1].acc_counts is None
+    assert result.messages("tilt") == []
+
+
+def test_corrupt_frames_are_rejected_and_never_published() -> None:
+    emulator = board(counts={"ir1": 300})
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(0.5)
+        emulator.corrupt(5)
+        await h.sleep(1.0)
+
+    result = run(scenario=scenario)
+    rejected = result.events(of=SensorFrameRejected)
+    assert len(rejected) == 5
+    frames = result.messages("frames", of=SensorFrame)
+    seqs = [f.seq for f in frames]
+    assert len(seqs) == len(set(seqs))
+    assert all(f.ir_counts == (300, 80) for f in frames)  # no damaged value got through
+    gaps = result.events(of=SensorFrameGap)
+    assert sum(g.missed for g in gaps) == 5
+
+
+def test_lost_frames_are_a_gap_and_silence_makes_the_link_stale() -> None:
+    emulator = board()
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(0.52)
+        emulator.drop(1)
+        await h.sleep(0.5)
+        emulator.silence(until_board_s=2.0)
+        await h.sleep(1.5)
+
+    result = run(scenario=scenario, stats_period_s=0.5)
+    gaps = result.events(of=SensorFrameGap)
+    assert next((g.missed, g.restarted) for g in gaps) == (1, False)
+    (stale,) = result.events(of=SensorLinkStale)
+    (fresh,) = result.events(of=SensorLinkFresh)
+    stale_after = CFG.sensor_board.stale_after_frames * PERIOD
+    assert stale.silent_s == pytest.approx(stale_after)
+    last_before = max(f.t for f in result.messages("frames", of=SensorFrame) if f.t < stale.t)
+    assert stale.t == pytest.approx(last_before + stale_after)
+    assert fresh.t > stale.t
+    assert fresh.t == pytest.approx(2.0, abs=2e-3)  # the first frame after the silence
+    assert fresh.silent_s == pytest.approx(fresh.t - last_before)
+    stats = result.messages("stats", of=SensorStats)[-1]
+    assert stats.missed == sum(g.missed for g in gaps)
+    assert gaps[1].missed == round((2.0 - stale.t) / PERIOD) + 2  # the silence lost them all
+
+
+def test_unplugged_board_is_reconnected_and_its_reset_is_not_a_gap() -> None:
+    emulator = board()
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(1.0)
+        emulator.unplug()
+        await h.sleep(1.2)
+        emulator.replug()
+        await h.sleep(1.0)
+
+    result = run(scenario=scenario)
+    (down,) = result.events(of=SensorLinkDown)
+    ups = result.events(of=SensorLinkUp)
+    assert len(ups) == 2
+    assert down.t == pytest.approx(1.0)
+    reconnect = CFG.sensor_board.reconnect_period_s
+    assert 2.2 <= ups[1].t <= 2.2 + reconnect + 1e-9
+    assert emulator.resets == 2
+    frames = result.messages("frames", of=SensorFrame)
+    after = [f.seq for f in frames if f.t > ups[1].t]
+    assert after[:3] == [0, 1, 2]  # the board reset on open…
+    assert not result.events(of=SensorFrameGap)  # …which is not a loss
+    assert result.events(of=SensorLinkStale)  # while unplugged, readings went stale
+    assert result.exit_code == 0
+
+
+def test_reader_sets_the_boards_frame_rate(tmp_path: Path) -> None:
+    config = tmp_path / "robot.toml"
+    config.write_text("[sensor_board]\nframe_rate_hz = 50.0\n")
+    emulator = board(frame_rate_hz=20.0)
+    result = run(duration=1.0, config=str(config))
+    assert emulator.commands == [b"rate=50#"]
+    frames = result.messages("frames", of=SensorFrame)
+    late = [f for f in frames if f.t > 0.2]
+    gaps = {round(b.t - a.t, 4) for a, b in itertools.pairwise(late)}
+    assert gaps == {0.02}
+
+
+def test_garbage_on_the_line_is_reported_and_the_next_frame_decodes() -> None:
+    emulator = board()
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(0.33)
+        emulator.inject(b"\xfe\xff boot v1.2 ;;==")
+        await h.sleep(0.5)
+
+    result = run(scenario=scenario)
+    (rejected,) = result.events(of=SensorFrameRejected)
+    assert "garbage before a frame" in rejected.reason
+    seqs = [f.seq for f in result.messages("frames", of=SensorFrame)]
+    assert seqs == list(range(len(seqs)))  # the frame the garbage preceded survived
+
+
+def test_thesis_mode_publishes_plain_frames_without_seq() -> None:
+    emulator = board()
+    plain = b"ir1=5;ir2=7;accx=0;accy=1;accz=2;fsr0=5;fsr1=7;fsr2=3;fsr3=2;fsr4=6;fsr5=8#"
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(0.21)
+        emulator.inject(plain)
+        await h.sleep(0.1)
+
+    checked = run(scenario=scenario)
+    assert checked.events(of=SensorFrameRejected)[0].reason.startswith("no checksum")
+    BOARD_EMULATORS.clear()
+    emulator = board()
+    thesis = run(scenario=scenario, protocol="thesis")
+    frames = thesis.messages("frames", of=SensorFrame)
+    (plain_frame,) = [f for f in frames if f.seq is None]
+    assert plain_frame.fsr_counts == (5, 7, 3, 2, 6, 8)
+    assert not thesis.events(of=SensorFrameRejected)
+
+
+def test_missing_device_is_an_event_and_the_reader_keeps_looking(tmp_path: Path) -> None:
+    graph = sensor_graph(str(tmp_path / "no-such-tty"))
+    result = run_actors(graph, duration=1.2)
+    downs = result.events(of=SensorLinkDown)
+    assert len(downs) == 1  # reported once, then retried quietly
+    assert "cannot open" in downs[0].reason
+    assert not result.events(of=ActorFailed)
+    assert result.events(of=SensorLinkStale)
+
+
+def test_unknown_emulator_name_fails_with_the_registered_names() -> None:
+    board("other")
+    result = run_actors(sensor_graph("emulator:nope"), duration=0.5)
+    failed = result.events(of=ActorFailed)
+    assert failed
+    assert "no emulated sensor board registered as 'nope'" in failed[0].error
+    assert "other" in failed[0].error
+
+
+def test_same_inputs_same_messages() -> None:
+    digests = []
+    for _ in range(2):
+        emulator = board(counts={"ir1": 250, "fsr4": 700})
+
+        async def scenario(h: Harness, emulator: SensorBoardEmulator = emulator) -> None:
+            await h.sleep(0.4)
+            emulator.corrupt(2)
+            emulator.drop(1)
+            await h.sleep(0.6)
+
+        digests.append(run(scenario=scenario).digest)
+        BOARD_EMULATORS.clear()
+    assert digests[0] == digests[1]

@@ -1,0 +1,363 @@
+"""The sensor reader: the only owner of the sensor board's serial line.
+
+Theory of operation
+-------------------
+The ATmega2560 board sends a text frame every 1/frame-rate seconds
+(``firmware/PROTOCOL.md``; Žák 2023, 5.4). The reader feeds whatever bytes
+arrive to the sans-IO :class:`~whexar.bus.sensor_frame.FrameDecoder` and,
+for each frame, publishes in the same loop iteration:
+
+* :class:`SensorFrame` — everything in the frame, raw and converted;
+* :class:`ObstacleRanges` — the IR distances by eq. 5.5 (calibration from
+  ``[ir]``), ``inf`` beyond ``ir.max_distance_mm``;
+* :class:`LegLoads` — the FSR counts and per-leg contact flags, with the
+  hysteresis of ``[fsr]`` (on at ``contact_on_counts``, off below
+  ``contact_off_counts``);
+* :class:`BodyTilt` — roll and pitch from the board's accelerometer
+  (eq. 5.6–5.7), when the frame carries one.
+
+Each is stamped with the time the frame was decoded and its sequence
+number. What goes wrong becomes an event, never an exception:
+
+* a rejected frame (garbage, bad checksum, out-of-range value) is
+  :class:`SensorFrameRejected` and nothing of it is published;
+* a jump in ``seq`` is :class:`SensorFrameGap` (lost frames or a board reset);
+* no valid frame for ``sensor_board.stale_after_frames`` frame periods is
+  :class:`SensorLinkStale`, and the first valid frame after it
+  :class:`SensorLinkFresh`;
+* the device vanishing is :class:`SensorLinkDown`; the reader looks for it
+  every ``reconnect_period_s`` and reports :class:`SensorLinkUp` when it is
+  back. Opening the port resets an Arduino Mega (DTR), so the first frame of
+  a connection never counts as a gap.
+
+After the first valid frame of each connection (when the board's bootloader
+has handed over to the sketch) the reader sends ``rate=N#`` so that the
+board's frame rate is the configured one.
+
+The port is a device or a pty (pyserial-asyncio, :mod:`whexar.bus.serial_link`),
+or ``emulator`` / ``emulator:NAME`` for the in-process board of
+:mod:`whexar.bus.board_emulator` on virtual time.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import anyio
+from pydantic import Field
+
+from whexar.actors.actor import Actor, ActorParams, Output
+from whexar.actors.messages import (
+    BodyTilt,
+    LegLoads,
+    ObstacleRanges,
+    SensorFrame,
+    SensorFrameGap,
+    SensorFrameRejected,
+    SensorLinkDown,
+    SensorLinkFresh,
+    SensorLinkStale,
+    SensorLinkUp,
+    SensorStats,
+)
+from whexar.bus.board_emulator import SensorBoardEmulator
+from whexar.bus.sensor_frame import Frame, FrameDecoder, Mode, Rejected
+from whexar.bus.serial_link import ByteLink, SerialLink
+from whexar.config import RobotConfig, load_config
+from whexar.errors import DeviceGoneError, UsageError
+from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+
+EMULATOR: Final = "emulator"
+"""The port name of the in-process board; ``emulator:NAME`` picks a registered one."""
+
+BOARD_EMULATORS: dict[str, SensorBoardEmulator] = {}
+"""In-process sensor boards by name, for ``port = "emulator:NAME"`` (tests, simulation).
+
+A board registered here outlives the reader (it is the hardware), so a
+restarted reader finds it as its predecessor left it.
+"""
+
+
+def register_board(name: str, board: SensorBoardEmulator) -> None:
+    """Make ``board`` the port ``emulator:name``."""
+    BOARD_EMULATORS[name] = board
+
+
+class SensorReader(Actor):
+    """Reads the sensor board's frames and publishes typed sensor messages."""
+
+    class Params(ActorParams):
+        config: str | None = None
+        """Robot configuration file; absent: the built-in defaults (= config/whexar.toml)."""
+        port: str | None = None
+        """Overrides ``sensor_board.port``: a device, a pty, ``emulator`` or ``emulator:NAME``."""
+        baudrate: int | None = Field(default=None, gt=0)
+        """Overrides ``sensor_board.baudrate``."""
+        protocol: Mode | None = None
+        """Overrides ``sensor_board.protocol``: ``checked`` or ``thesis``."""
+        stats_period_s: float = Field(1.0, gt=0)
+        """How often :class:`SensorStats` is published."""
+
+    params: Params
+    frames = Output(SensorFrame, optional=True)
+    ranges = Output(ObstacleRanges, optional=True)
+    loads = Output(LegLoads, optional=True)
+    tilt = Output(BodyTilt, optional=True)
+    stats = Output(SensorStats, optional=True)
+
+    # ----------------------------------------------------------------- set-up
+
+    def _setup(self) -> None:
+        p = self.params
+        self.cfg: RobotConfig = load_config(p.config) if p.config else RobotConfig()
+        board = self.cfg.sensor_board
+        self.port = p.port if p.port is not None else board.port
+        self.baudrate = p.baudrate if p.baudrate is not None else board.baudrate
+        self.decoder = FrameDecoder(mode=p.protocol if p.protocol is not None else board.protocol)
+        self.frame_period_s = 1.0 / board.frame_rate_hz
+        self.stale_after_s = board.stale_after_frames * self.frame_period_s
+        self.rate_command = f"rate={round(board.frame_rate_hz)}#".encode()
+        ir = self.cfg.ir
+        self._ir = (ir.k_cm, ir.exponent, ir.min_distance_mm / 1000, ir.max_distance_mm / 1000)
+        self._fsr_on = self.cfg.fsr.contact_on_counts
+        self._fsr_off = self.cfg.fsr.contact_off_counts
+        acc = board.accelerometer
+        self._acc = tuple(zip(acc.zero_g_counts, acc.counts_per_g, strict=True))
+        self.contacts = [False] * 6
+        self.link_name = self.port
+        self.last_valid = 0.0
+        self.last_seq: int | None = None
+        self.stale = False
+        self.reconnects = 0
+        self._valid = anyio.Event()
+        if self.port.startswith(f"{EMULATOR}:"):
+            self._board()  # an unknown emulator name is a configuration error: fail now
+
+    def _board(self) -> SensorBoardEmulator:
+        if self.port == EMULATOR:
+            board = BOARD_EMULATORS.get(EMULATOR)
+            if board is None:
+                rate = self.cfg.sensor_board.frame_rate_hz
+                board = BOARD_EMULATORS.setdefault(
+                    EMULATOR, SensorBoardEmulator(frame_rate_hz=rate, baudrate=self.baudrate)
+                )
+            return board
+        name = self.port.removeprefix(f"{EMULATOR}:")
+        try:
+            return BOARD_EMULATORS[name]
+        except KeyError:
+            known = ", ".join(sorted(BOARD_EMULATORS)) or "none"
+            raise UsageError(
+                f"port = {self.port!r}: no emulated sensor board registered as {name!r} "
+                f"(registered: {known}); use whexar.actors.sensors.register_board"
+            ) from None
+
+    async def _open(self) -> ByteLink:
+        if self.port == EMULATOR or self.port.startswith(f"{EMULATOR}:"):
+            return self._board().open(self.clock)
+        return await SerialLink.open(self.port, self.baudrate)
+
+    # ----------------------------------------------------------------- running
+
+    async def run(self) -> None:
+        self._setup()
+        self.last_valid = self.now()
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(self._watch_staleness)
+            if self.stats.connected:
+                tg.start_soon(self._report_stats)
+            # Ready once the first attempt to open the port is over, whether
+            # or not it succeeded: a missing board is an event, not a failure.
+            await self._serve()
+
+    async def _serve(self) -> None:
+        first = True
+        while True:
+            link: ByteLink | None = None
+            try:
+                link = await self._open()
+            except DeviceGoneError as exc:
+                if first:
+                    self._down(str(exc))
+            if first:
+                self.ready()
+                first = False
+            if link is not None:
+                self.emit(SensorLinkUp(t=self.now(), source=self.name, link=self.port))
+                try:
+                    await self._read(link)
+                except DeviceGoneError as exc:
+                    self._down(str(exc))
+                finally:
+                    with self.shielded():
+                        await link.aclose()
+                self.reconnects += 1
+            await self.clock.sleep(self.cfg.sensor_board.reconnect_period_s)
+
+    def _down(self, reason: str) -> None:
+        self.emit(SensorLinkDown(t=self.now(), source=self.name, link=self.port, reason=reason))
+
+    async def _read(self, link: ByteLink) -> None:
+        decoder = self.decoder
+        decoder.clear()
+        told_rate = False
+        while True:
+            data = await link.receive()
+            for item in decoder.feed(data):
+                if isinstance(item, Rejected):
+                    self.emit(
+                        SensorFrameRejected(
+                            t=self.now(),
+                            source=self.name,
+                            link=self.port,
+                            reason=item.reason,
+                            size=item.size,
+                            excerpt=item.excerpt,
+                        )
+                    )
+                    continue
+                await self._publish(item)
+                if not told_rate:
+                    told_rate = True
+                    await link.send(self.rate_command)
+
+    async def _publish(self, frame: Frame) -> None:
+        t = self.now()
+        if self.stale:
+            self.stale = False
+            self.emit(
+                SensorLinkFresh(t=t, source=self.name, link=self.port, silent_s=t - self.last_valid)
+            )
+        self.last_valid = t
+        self.last_seq = frame.seq
+        self._valid.set()
+        if frame.expected_seq is not None and (frame.missed or frame.restarted):
+            self.emit(
+                SensorFrameGap(
+                    t=t,
+                    source=self.name,
+                    link=self.port,
+                    expected=frame.expected_seq,
+                    seq=frame.seq if frame.seq is not None else -1,
+                    missed=frame.missed,
+                    restarted=frame.restarted,
+                )
+            )
+        distances = self._distances(frame.ir) if frame.ir is not None else None
+        contacts = self._contacts(frame.fsr) if frame.fsr is not None else None
+        tilt = self._tilt(frame.acc) if frame.acc is not None else None
+        name, seq = self.name, frame.seq
+        if self.frames.connected:
+            await self.frames.send(
+                SensorFrame(
+                    t=t,
+                    source=name,
+                    seq=seq,
+                    ir_counts=frame.ir,
+                    ir_distances_m=distances,
+                    fsr_counts=frame.fsr,
+                    contacts=contacts,
+                    acc_counts=frame.acc,
+                    roll_rad=tilt[0] if tilt else None,
+                    pitch_rad=tilt[1] if tilt else None,
+                    missed=frame.missed,
+                )
+            )
+        if frame.ir is not None and distances is not None:
+            await self.ranges.send(
+                ObstacleRanges(t=t, source=name, seq=seq, counts=frame.ir, distances_m=distances)
+            )
+        if frame.fsr is not None and contacts is not None:
+            await self.loads.send(
+                LegLoads(t=t, source=name, seq=seq, counts=frame.fsr, contacts=contacts)
+            )
+        if tilt is not None:
+            roll, pitch, accel = tilt
+            await self.tilt.send(
+                BodyTilt(
+                    t=t,
+                    source=name,
+                    seq=seq,
+                    sensor="board",
+                    roll_rad=roll,
+                    pitch_rad=pitch,
+                    accel_g=accel,
+                )
+            )
+
+    # ----------------------------------------------------------------- conversions
+
+    def _distances(self, counts: tuple[int, int]) -> tuple[float, float]:
+        k, e, nearest, farthest = self._ir
+        out = []
+        for c in counts:
+            if c == 0:
+                out.append(math.inf)  # no reflected light at all: nothing in range
+                continue
+            d = ir_distance(float(c), k, e)
+            out.append(math.inf if d > farthest else max(d, nearest))
+        return out[0], out[1]
+
+    def _contacts(self, counts: tuple[int, ...]) -> tuple[bool, bool, bool, bool, bool, bool]:
+        flags = self.contacts
+        for leg, c in enumerate(counts):
+            if c >= self._fsr_on:
+                flags[leg] = True
+            elif c < self._fsr_off:
+                flags[leg] = False
+        return flags[0], flags[1], flags[2], flags[3], flags[4], flags[5]
+
+    def _tilt(
+        self, counts: tuple[int, int, int]
+    ) -> tuple[float, float, tuple[float, float, float]] | None:
+        (zx, gx), (zy, gy), (zz, gz) = self._acc
+        accel = ((counts[0] - zx) / gx, (counts[1] - zy) / gy, (counts[2] - zz) / gz)
+        try:
+            roll, pitch = tilt_from_acceleration(*accel)
+        except UsageError:
+            return None  # free fall (or an unpowered sensor): no gravity, no tilt
+        return roll, pitch, accel
+
+    # ----------------------------------------------------------------- watchdogs
+
+    async def _watch_staleness(self) -> None:
+        while True:
+            deadline = self.last_valid + self.stale_after_s
+            if self.now() < deadline:
+                await self.clock.sleep_until(deadline)
+                continue
+            if not self.stale:
+                self.stale = True
+                self.emit(
+                    SensorLinkStale(
+                        t=self.now(),
+                        source=self.name,
+                        link=self.port,
+                        silent_s=self.now() - self.last_valid,
+                        last_seq=self.last_seq,
+                    )
+                )
+            self._valid = anyio.Event()
+            await self._valid.wait()
+
+    async def _report_stats(self) -> None:
+        period = self.params.stats_period_s
+        next_t = self.now() + period
+        while True:
+            await self.clock.sleep_until(next_t)
+            next_t += period
+            s = self.decoder.stats
+            await self.stats.send(
+                SensorStats(
+                    t=self.now(),
+                    source=self.name,
+                    link=self.port,
+                    frames=s.frames,
+                    rejected=s.rejected,
+                    missed=s.missed,
+                    unknown_keys=s.unknown_keys,
+                    garbage_bytes=s.garbage_bytes,
+                    reconnects=self.reconnects,
+                )
+            )
