@@ -339,6 +339,38 @@ def _bus_scan(args: argparse.Namespace) -> int:
     return 0 if found else 1
 
 
+# --------------------------------------------------------------------------- sensor board
+
+
+def _sensors(args: argparse.Namespace) -> int:
+    from whexar.actors.clock import run as run_loop
+    from whexar.actors.runtime import Runtime
+    from whexar.actors.wiring import build_graph
+    from whexar.monitor import observer
+    from whexar.testing.sensors import sensor_graph
+
+    params: dict[str, object] = {}
+    if args.baud is not None:
+        params["baudrate"] = args.baud
+    if args.config is not None:
+        params["config"] = str(args.config)
+    if args.protocol is not None:
+        params["protocol"] = args.protocol
+    graph = build_graph(sensor_graph(args.port, params, outputs=("frames",)))
+
+    def write(line: str) -> None:
+        print(line, flush=True)
+
+    runtime = Runtime(graph, handle_signals=True, observer=observer(args.json, write))
+    if not args.json:
+        print(f"reading {args.port}; stop with Ctrl-C", flush=True)
+
+    async def main() -> int:
+        return await runtime.run(duration=args.duration)
+
+    return run_loop(main)
+
+
 # --------------------------------------------------------------------------- parser
 
 
@@ -439,6 +471,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     bench_bus.add_argument("--json", action="store_true", help="print the figures as JSON")
     bench_bus.set_defaults(handler=_bench)
+    bench_sensors = bench_cmds.add_parser(
+        "sensors", help="sensor frame decoding speed and frame-to-message latency (real time)"
+    )
+    bench_sensors.add_argument("--json", action="store_true", help="print the medians as JSON")
+    bench_sensors.set_defaults(handler=_bench)
 
     run_cmd = commands.add_parser(
         "run",
@@ -510,6 +547,36 @@ def build_parser() -> argparse.ArgumentParser:
     bus_scan.add_argument("--baud", type=_baud, default=1_000_000, help="default: 1000000")
     bus_scan.add_argument("--json", action="store_true", help="print one JSON list")
     bus_scan.set_defaults(handler=_bus_scan)
+
+    sensors = commands.add_parser(
+        "sensors",
+        help="print the sensor board's frames as they arrive",
+        description="Read the sensor board (firmware/PROTOCOL.md) through the real sensor "
+        "reader and print each decoded frame: raw counts, IR distances (eq. 5.5), FSR "
+        "counts and contact flags, roll and pitch, sequence number; and a line for every "
+        "link event, sequence gap and rejected frame. Runs until SIGINT/SIGTERM or "
+        "--duration. Exit status 0 after a clean stop.",
+    )
+    sensors.add_argument(
+        "--port", required=True, help="e.g. /dev/ttyACM0, the pty of whexar-sim, or 'emulator'"
+    )
+    sensors.add_argument(
+        "--baud", type=int, default=None, help="default: sensor_board.baudrate (1000000)"
+    )
+    sensors.add_argument(
+        "--config", type=Path, default=None, help="robot configuration (calibrations, thresholds)"
+    )
+    sensors.add_argument(
+        "--protocol",
+        choices=("checked", "thesis"),
+        default=None,
+        help="checked: frames need seq and crc (default); thesis: plain frames too",
+    )
+    sensors.add_argument("--json", action="store_true", help="one JSON object per line")
+    sensors.add_argument(
+        "--duration", type=_seconds, default=None, help="stop after this many seconds"
+    )
+    sensors.set_defaults(handler=_sensors)
     return parser
 
 

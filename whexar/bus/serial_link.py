@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import asyncio
 from collections import deque
-from typing import Any, Protocol
+from typing import Protocol
 
 import serial
 import serial_asyncio
@@ -125,9 +125,4 @@ class SerialLink:
         return f"SerialLink({self.name!r})"
 
 
-def describe_link(link: Any) -> str:
-    """The name a link reports in events."""
-    return str(getattr(link, "name", link))
-
-
-__all__ = ["ByteLink", "SerialLink", "describe_link"]
+__all__ = ["ByteLink", "SerialLink"]

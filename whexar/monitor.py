@@ -1,0 +1,133 @@
+"""``whexar sensors``: watch a sensor board's frames while bringing it up.
+
+The monitor runs the real :class:`~whexar.actors.sensors.SensorReader` on
+real time and prints each decoded frame as it arrives, plus one line for
+every link event (up, down, stale, fresh), sequence gap and rejected frame.
+With ``--json`` every line is one JSON object whose ``kind`` is ``frame``
+or ``event`` (then ``event`` is its class name); ``loads`` are the FSR
+counts; a distance of ``null`` means nothing within range.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from typing import Any
+
+from whexar.actors.messages import (
+    Message,
+    SensorFrame,
+    SensorFrameGap,
+    SensorFrameRejected,
+    SensorLinkDown,
+    SensorLinkFresh,
+    SensorLinkStale,
+    SensorLinkUp,
+)
+from whexar.actors.wiring import EVENTS_CHANNEL
+from whexar.bus.sensor_frame import ACC_KEYS, FSR_KEYS, IR_KEYS
+
+SENSOR_EVENTS = (
+    SensorLinkUp,
+    SensorLinkDown,
+    SensorLinkStale,
+    SensorLinkFresh,
+    SensorFrameGap,
+    SensorFrameRejected,
+)
+"""The events the monitor prints."""
+
+
+def _deg(rad: float | None) -> float | None:
+    return None if rad is None else round(math.degrees(rad), 2)
+
+
+def frame_record(frame: SensorFrame) -> dict[str, Any]:
+    """A frame as a JSON-ready dict: raw counts by key, then the converted values."""
+    raw: dict[str, int] = {}
+    for keys, values in (
+        (IR_KEYS, frame.ir_counts),
+        (ACC_KEYS, frame.acc_counts),
+        (FSR_KEYS, frame.fsr_counts),
+    ):
+        if values is not None:
+            raw.update(zip(keys, values, strict=True))
+    distances = frame.ir_distances_m
+    return {
+        "kind": "frame",
+        "t": round(frame.t, 6),
+        "seq": frame.seq,
+        "raw": raw,
+        "ir_distance_m": None
+        if distances is None
+        else [None if math.isinf(d) else round(d, 4) for d in distances],
+        "loads": None if frame.fsr_counts is None else list(frame.fsr_counts),
+        "contacts": None if frame.contacts is None else list(frame.contacts),
+        "roll_deg": _deg(frame.roll_rad),
+        "pitch_deg": _deg(frame.pitch_rad),
+        "missed": frame.missed,
+    }
+
+
+def frame_line(frame: SensorFrame) -> str:
+    """A frame as one human-readable line."""
+    seq = "-" if frame.seq is None else str(frame.seq)
+    parts = [f"{frame.t:10.3f}  seq {seq:>5}"]
+    if frame.ir_counts is not None and frame.ir_distances_m is not None:
+        shown = ", ".join("  --  " if math.isinf(d) else f"{d:.3f}" for d in frame.ir_distances_m)
+        parts.append(f"ir {frame.ir_counts[0]:4d} {frame.ir_counts[1]:4d} ({shown} m)")
+    if frame.fsr_counts is not None and frame.contacts is not None:
+        marks = "".join("#" if c else "." for c in frame.contacts)
+        parts.append(f"fsr {' '.join(f'{c:4d}' for c in frame.fsr_counts)} [{marks}]")
+    if frame.roll_rad is not None and frame.pitch_rad is not None:
+        parts.append(f"roll {_deg(frame.roll_rad):+6.1f}° pitch {_deg(frame.pitch_rad):+6.1f}°")
+    return "  ".join(parts)
+
+
+def event_record(event: Message) -> dict[str, Any]:
+    """A sensor event as a JSON-ready dict."""
+    fields = {
+        name: getattr(event, name)
+        for name in event.__dataclass_fields__
+        if name not in ("t", "source")
+    }
+    return {"kind": "event", "t": round(event.t, 6), "event": type(event).__name__, **fields}
+
+
+def event_line(event: Message) -> str:
+    """A sensor event as one human-readable line."""
+    t = f"{event.t:10.3f}  "
+    match event:
+        case SensorLinkUp():
+            return f"{t}link up: {event.link}"
+        case SensorLinkDown():
+            return f"{t}link DOWN: {event.reason}"
+        case SensorLinkStale():
+            return (
+                f"{t}STALE: no valid frame for {event.silent_s:.3f} s (last seq {event.last_seq})"
+            )
+        case SensorLinkFresh():
+            return f"{t}fresh again after {event.silent_s:.3f} s"
+        case SensorFrameGap(restarted=True):
+            return f"{t}board RESTARTED: seq {event.seq} where {event.expected} was due"
+        case SensorFrameGap():
+            return f"{t}GAP: {event.missed} frame(s) lost before seq {event.seq}"
+        case SensorFrameRejected():
+            return f"{t}REJECTED ({event.size} bytes): {event.reason}: {event.excerpt}"
+    return f"{t}{type(event).__name__}"
+
+
+def observer(as_json: bool, write: Callable[[str], None]) -> Callable[[str, Message], None]:
+    """A runtime observer that writes frames and sensor events, one line each."""
+
+    def observe(channel: str, msg: Message) -> None:
+        if channel == "frames" and isinstance(msg, SensorFrame):
+            write(json.dumps(frame_record(msg)) if as_json else frame_line(msg))
+        elif channel == EVENTS_CHANNEL and isinstance(msg, SENSOR_EVENTS):
+            write(json.dumps(event_record(msg)) if as_json else event_line(msg))
+
+    return observe
+
+
+__all__ = ["event_line", "event_record", "frame_line", "frame_record", "observer"]
