@@ -493,6 +493,18 @@ class ImuSpec(Section):
     stale_after_s: Positive = 0.1
     """The IMU link is stale when no sample was read for this long."""
 
+    def problems(self, at: str) -> list[Problem]:
+        # One late sample must not read as a stale link (whexar.actors.imu).
+        if self.stale_after_s < 2.0 / self.rate_hz:
+            return [
+                Problem(
+                    f"{at}.stale_after_s",
+                    self.stale_after_s,
+                    f"at least two sample periods (2 / rate_hz = {2.0 / self.rate_hz:g} s)",
+                )
+            ]
+        return []
+
 
 # --------------------------------------------------------------------------- gait selection
 

@@ -1,4 +1,4 @@
-"""Device links: the Dynamixel servo bus and (with its issue) the sensor-board serial line.
+"""Device links: the Dynamixel servo bus, the sensor board's serial line and the IMU.
 
 * :mod:`~whexar.bus.control_table` — MX (2.0) registers, models and units;
 * :mod:`~whexar.bus.protocol` — the sans-IO Protocol 2.0 codec and wire sizes;
@@ -7,7 +7,12 @@
 * :mod:`~whexar.bus.emulator` — 42 virtual servos, byte for byte, with timing;
 * :mod:`~whexar.bus.faults` — declarative fault plans for the emulator;
 * :mod:`~whexar.bus.pty` — the emulator on a pseudo-terminal, in real time;
-* :mod:`~whexar.bus.scan` — ``whexar bus scan``.
+* :mod:`~whexar.bus.scan` — ``whexar bus scan``;
+* :mod:`~whexar.bus.sensor_frame` — the sensor board's frames, a sans-IO codec;
+* :mod:`~whexar.bus.serial_link` — the board's serial port over pyserial-asyncio;
+* :mod:`~whexar.bus.board_emulator` — the board's firmware in Python, on virtual time;
+* :mod:`~whexar.bus.lsm9ds1` — the LSM9DS1 IMU driver over an SMBus.
 
-The scheduler actor that owns the port is :mod:`whexar.actors.bus`.
+The actors that own these links are :mod:`whexar.actors.bus`,
+:mod:`whexar.actors.sensors` and :mod:`whexar.actors.imu`.
 """

@@ -23,9 +23,12 @@ from whexar.testing.harness import (
     Scenario,
     run_actors,
 )
+from whexar.testing.i2c import FakeLsm9ds1, FakeSMBus, imu_graph
 
 __all__ = [
     "HARNESS",
+    "FakeLsm9ds1",
+    "FakeSMBus",
     "Harness",
     "InjectedFailure",
     "LogEntry",
@@ -35,5 +38,6 @@ __all__ = [
     "RunResult",
     "Scenario",
     "Sink",
+    "imu_graph",
     "run_actors",
 ]
