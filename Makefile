@@ -5,7 +5,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: test sim lint typecheck clean
+.PHONY: test sim lint typecheck firmware clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "whexar needs Python >= 3.11")'
@@ -20,7 +20,12 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
-test: lint typecheck
+# The sensor-board firmware: built with avr-gcc, host-tested, run in simavr
+# (firmware/Makefile installs its Debian packages when they are missing).
+firmware:
+	$(MAKE) -C firmware test
+
+test: lint typecheck firmware
 	$(BIN)/pytest -q
 
 sim: $(STAMP)
@@ -30,3 +35,4 @@ sim: $(STAMP)
 
 clean:
 	rm -rf $(VENV) .mypy_cache .pytest_cache .ruff_cache .hypothesis
+	$(MAKE) -C firmware clean
