@@ -35,6 +35,7 @@ from whexar.bus.board_emulator import (
     counts_for_distance,
 )
 from whexar.bus.sensor_frame import encode_frame
+from whexar.cli import main
 from whexar.config import RobotConfig
 from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
 from whexar.testing import Harness, RunResult, run_actors
@@ -296,3 +297,15 @@ def test_same_inputs_same_messages() -> None:
         digests.append(run(scenario=scenario).digest)
         BOARD_EMULATORS.clear()
     assert digests[0] == digests[1]
+
+
+def test_shipped_sensors_graph_runs_both_readers(capsys: pytest.CaptureFixture[str]) -> None:
+    graph = Path(__file__).resolve().parents[1] / "config" / "graphs" / "sensors.toml"
+    assert main(["run", str(graph), "--virtual", "--duration", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "SensorLinkUp    link='emulator'" in out
+    assert "SensorLinkUp    link='i2c-1:0x6b'" in out
+    assert "channel ranges: 39 published" in out  # 20 Hz board frames, 0.05 … 1.95 s
+    tilts = int(out.split("channel tilt: ")[1].split()[0])
+    assert 39 + 98 <= tilts <= 39 + 101  # the board's 20 Hz and the IMU's 50 Hz share it
+    assert "ActorFailed" not in out

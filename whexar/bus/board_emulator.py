@@ -293,8 +293,12 @@ class EmulatedBoardLink:
                 continue
             command, self._command = bytes(self._command), bytearray()
             self.board.commands.append(command + b"#")
-            if command.startswith(b"rate=") and command[5:].isdigit():
-                rate = int(command[5:])
+            # As the firmware's parser (frame.cpp): blanks between commands are
+            # skipped, N has 1 to 3 digits.
+            command = command.lstrip(b" \t\r\n\x00")
+            digits = command.removeprefix(b"rate=")
+            if command.startswith(b"rate=") and digits.isdigit() and len(digits) <= 3:
+                rate = int(digits)
                 if RATE_MIN_HZ <= rate <= RATE_MAX_HZ:
                     self._period = 1.0 / rate
                     self.board.frame_rate_hz = rate
