@@ -30,35 +30,16 @@ from whexar.actors.messages import (
 from whexar.bus import lsm9ds1
 from whexar.bus.lsm9ds1 import Lsm9ds1, choose_odr, decode_xyz, settings
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
-from whexar.testing import Harness, RunResult, Scenario, run_actors
+from whexar.testing import Harness, RunResult, Scenario, run_actors, thesis
 from whexar.testing.i2c import FakeLsm9ds1, FakeSMBus, imu_graph
 
 G = 9.81
 """The table's m/s² per g (6.1.3 compares its readings with 9.81)."""
 
-# Table 6.4 (6.1.3): set angle [°], X, Y, Z [m/s²], calculated angle [°] (from Y and Z).
-TABLE_6_4 = [
-    (-80, -0.09, -9.81, 1.72, -80.04),
-    (-70, -0.25, -9.30, 3.36, -70.13),
-    (-60, -0.53, -8.51, 4.88, -60.17),
-    (-50, -0.39, -7.48, 6.25, -50.10),
-    (-40, 0.30, -6.23, 7.40, -40.13),
-    (-30, -0.38, -4.82, 8.32, -30.06),
-    (-20, -0.25, -3.27, 8.98, -20.00),
-    (-10, 0.34, -1.66, 9.35, -10.05),
-    (0, 0.00, 0.00, 9.79, 0.00),
-    (10, -0.10, 1.66, 9.31, 10.08),
-    (20, -0.30, 3.23, 8.87, 20.05),
-    (30, 0.16, 4.76, 8.16, 30.26),
-    (40, -0.42, 6.09, 7.24, 40.07),
-    (50, -0.55, 7.23, 6.03, 50.14),
-    (60, -0.21, 8.29, 4.80, 59.96),
-    (70, -0.32, 9.01, 3.28, 70.02),
-    (80, -0.29, 9.49, 1.67, 80.03),
-    (90, -0.28, 9.66, -0.01, 90.09),
-    # Row 1 prints Z = +0.08, but its −90.45° needs Z = −0.08 (see tests/test_sensing.py).
-    (-90, -0.06, -10.00, -0.08, -90.45),
-]
+# Table 6.4 (6.1.3), rows 2–19 as printed, then row 1 with the sign of Z that its
+# calculated angle needs (see whexar.testing.thesis).
+_ANGLE, _X, _Y, _Z, _CALC = thesis.TABLE_6_4[0]
+TABLE_6_4 = [*thesis.TABLE_6_4[1:], (_ANGLE, _X, _Y, -_Z, _CALC)]
 
 LINK = "i2c-1:0x6b"
 LINK_EVENTS = (SensorLinkDown, SensorLinkUp, SensorLinkStale, SensorLinkFresh)

@@ -125,7 +125,6 @@ class SensorReader(Actor):
         acc = board.accelerometer
         self._acc = tuple(zip(acc.zero_g_counts, acc.counts_per_g, strict=True))
         self.contacts = [False] * 6
-        self.link_name = self.port
         self.last_valid = 0.0
         self.last_seq: int | None = None
         self.stale = False
