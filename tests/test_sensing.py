@@ -115,3 +115,30 @@ def test_bad_accelerations_are_rejected() -> None:
         tilt_from_acceleration(0.0, 0.0, math.nan)
     with pytest.raises(UsageError, match="broadcast"):
         tilt_from_acceleration([0.0, 1.0], [0.0, 1.0, 2.0], 9.8)
+
+
+@pytest.mark.parametrize("counts", [1, 112.0, 299.5, 723, 1023.0])
+def test_scalar_ir_distance_equals_the_array_path_bit_for_bit(counts: float) -> None:
+    scalar = ir_distance(counts)
+    assert type(scalar) is float
+    assert scalar == float(ir_distance(np.array([counts]))[0])
+
+
+@pytest.mark.parametrize(
+    "accel", [(0.1, 0.2, 0.9), (-0.06, -10.0, -0.08), (1, 0, 0), (0.0, 0.0, -1.0)]
+)
+def test_scalar_tilt_equals_the_array_path_bit_for_bit(accel: tuple[float, float, float]) -> None:
+    roll, pitch = tilt_from_acceleration(*accel)
+    rolls, pitches = tilt_from_acceleration(*(np.array([a]) for a in accel))
+    assert (roll, pitch) == (float(rolls[0]), float(pitches[0]))
+
+
+def test_scalar_paths_still_refuse_bad_input() -> None:
+    with pytest.raises(UsageError):
+        ir_distance(0.0)
+    with pytest.raises(UsageError):
+        ir_distance(math.nan)
+    with pytest.raises(UsageError):
+        tilt_from_acceleration(0.0, 0, 0.0)
+    with pytest.raises(UsageError):
+        tilt_from_acceleration(math.inf, 0.0, 1.0)

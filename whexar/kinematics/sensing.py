@@ -5,6 +5,7 @@ Both are pure and vectorised: numbers in give floats out, arrays in give arrays 
 
 from __future__ import annotations
 
+import math
 from typing import Final, overload
 
 import numpy as np
@@ -20,6 +21,9 @@ IR_EXPONENT: Final = -1.4841404565
 
 ADC_MAX: Final = 1023
 """Largest reading of the ATmega2560's 10-bit A/D converter (5.3.5)."""
+
+_SCALARS: Final = (int, float)
+"""Exact types taking the scalar fast paths (``bool`` and numpy scalars do not)."""
 
 
 @overload
@@ -37,6 +41,12 @@ def ir_distance(
     lie in (0, 1023]. The calibration covers 10–140 cm (Table 5.4, counts ≈ 112–723); outside
     that it is an extrapolation.
     """
+    if type(adc_counts) in _SCALARS and type(k_cm) in _SCALARS and type(exponent) in _SCALARS:
+        # One reading per frame in the sensor reader: plain floats, ten times
+        # faster than the array path below and equal to it bit for bit.
+        c, k, e = float(adc_counts), float(k_cm), float(exponent)  # type: ignore[arg-type]
+        if 0.0 < c <= ADC_MAX and k > 0.0 and math.isfinite(k) and math.isfinite(e):
+            return float(0.01 * k * c**e)  # eq. 5.5, cm → m
     x = np.asarray(adc_counts, dtype=np.float64)
     if not np.all(np.isfinite(x)) or np.any(x <= 0.0) or np.any(x > ADC_MAX):
         raise UsageError(
@@ -73,6 +83,12 @@ def tilt_from_acceleration(
     body frame is a matter of configuration, not of this function. A zero acceleration vector
     (free fall, or no reading) has no tilt and raises UsageError.
     """
+    if type(ax) in _SCALARS and type(ay) in _SCALARS and type(az) in _SCALARS:
+        # The sensor readers' case: plain floats, without numpy's per-call cost.
+        fx, fy, fz = float(ax), float(ay), float(az)  # type: ignore[arg-type]
+        finite = math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz)
+        if finite and (fx, fy, fz) != (0.0, 0.0, 0.0):
+            return math.atan2(fx, fz), math.atan2(fy, fz)  # eq. 5.6, 5.7
     x, y, z = (np.asarray(a, dtype=np.float64) for a in (ax, ay, az))
     for name, value, raw in (("ax", x, ax), ("ay", y, ay), ("az", z, az)):
         if not np.all(np.isfinite(value)):
