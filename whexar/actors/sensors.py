@@ -134,14 +134,11 @@ class SensorReader(Actor):
             self._board()  # an unknown emulator name is a configuration error: fail now
 
     def _board(self) -> SensorBoardEmulator:
-        if self.port == EMULATOR:
-            board = BOARD_EMULATORS.get(EMULATOR)
-            if board is None:
-                rate = self.cfg.sensor_board.frame_rate_hz
-                board = BOARD_EMULATORS.setdefault(
-                    EMULATOR, SensorBoardEmulator(frame_rate_hz=rate, baudrate=self.baudrate)
-                )
-            return board
+        if self.port == EMULATOR and EMULATOR not in BOARD_EMULATORS:
+            rate = self.cfg.sensor_board.frame_rate_hz
+            register_board(
+                EMULATOR, SensorBoardEmulator(frame_rate_hz=rate, baudrate=self.baudrate)
+            )
         name = self.port.removeprefix(f"{EMULATOR}:")
         try:
             return BOARD_EMULATORS[name]

@@ -30,8 +30,9 @@ from typing import Final
 import anyio
 
 from whexar.actors.clock import Clock
-from whexar.bus.sensor_frame import ACC_KEYS, ADC_MAX, FSR_KEYS, IR_KEYS, encode_frame
+from whexar.bus.sensor_frame import ACC_KEYS, FSR_KEYS, IR_KEYS, encode_frame
 from whexar.errors import DeviceGoneError, UsageError
+from whexar.kinematics.sensing import ADC_MAX
 
 SAMPLE_RATE_HZ: Final = 50.0
 """ADC sampling of every input (Žák 2023, 6.1.2, 6.1.5)."""
@@ -67,11 +68,6 @@ class TrimmedMean:
         ordered = sorted(self._window)
         total = sum(ordered[1:-1])
         return (total + 1) // 3  # round half up, as the firmware's integer code does
-
-
-def counts_for_voltage(millivolts: float, vref_mv: float = 5000.0) -> int:
-    """The ATmega2560's reading of ``millivolts``: ⌊V·1024/Vref⌋, at most 1023 (datasheet 26.7)."""
-    return max(0, min(ADC_MAX, math.floor(millivolts * 1024.0 / vref_mv)))
 
 
 def counts_for_distance(distance_m: float, k_cm: float, exponent: float) -> int:
@@ -324,5 +320,4 @@ __all__ = [
     "TrimmedMean",
     "counts_for_acceleration",
     "counts_for_distance",
-    "counts_for_voltage",
 ]

@@ -29,14 +29,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Final, Literal, cast
 
+from whexar.kinematics.sensing import ADC_MAX
+
 Mode = Literal["checked", "thesis"]
 
 TERMINATOR: Final = b"#"
 """Ends every frame (5.4)."""
 MAX_FRAME_BYTES: Final = 192
 """Longest frame before its ``#`` (PROTOCOL.md "Limits"); a full checked frame is ~125."""
-ADC_MAX: Final = 1023
-"""Largest 10-bit ADC reading of the ATmega2560 (datasheet 26.7)."""
 SEQ_MODULO: Final = 1 << 16
 """``seq`` counts 0 … 65535 and wraps (PROTOCOL.md)."""
 CRC_INIT: Final = 0xFFFF
@@ -164,18 +164,14 @@ class FrameDecoder:
 
     def _candidate(self, data: bytes, out: list[Frame | Rejected]) -> None:
         begin = data.rfind(_SEQ)
+        if begin < 0 and self.mode == "thesis":
+            begin = data.rfind(_IR1)  # a plain thesis frame has no seq; it begins with ir1 (5.4)
         if begin > 0:
             head = data[:begin]
             if head.strip(_IGNORED):
-                out.append(self._reject("garbage before a frame (a lost '#'?)", len(head), head))
+                out.append(self._reject("garbage before a frame (a lost '#'?)", begin, head))
             data = data[begin:]
         elif begin < 0:
-            # A plain thesis frame has no seq; it begins with ir1 (5.4).
-            if self.mode == "thesis" and (begin := data.rfind(_IR1)) > 0:
-                head = data[:begin]
-                if head.strip(_IGNORED):
-                    out.append(self._reject("garbage before a frame (a lost '#'?)", begin, head))
-                data = data[begin:]
             data = data.lstrip(_IGNORED)
             if not data:
                 return
@@ -300,7 +296,6 @@ def encode_frame(
 
 
 __all__ = [
-    "ADC_MAX",
     "MAX_FRAME_BYTES",
     "DecoderStats",
     "Frame",

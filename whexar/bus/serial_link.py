@@ -52,10 +52,6 @@ class _Receiver(asyncio.Protocol):
         self.chunks: deque[bytes] = deque()
         self.gone: str | None = None
         self.waiter: asyncio.Future[None] | None = None
-        self.transport: asyncio.Transport | None = None
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
 
     def data_received(self, data: bytes) -> None:
         self.chunks.append(data)
