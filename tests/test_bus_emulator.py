@@ -19,7 +19,7 @@ from dynamixel_sdk import (
 )
 
 from whexar.bus.control_table import MODELS, HardwareError
-from whexar.bus.emulator import (
+from whexar.bus.emulator.chain import (
     EmulatedPort,
     ServoChain,
     TimingModel,

@@ -8,8 +8,8 @@ from typing import Any
 import dynamixel_sdk as dxl
 import pytest
 
-from whexar.bus.emulator import EmulatedPort, ServoChain
-from whexar.bus.faults import (
+from whexar.bus.emulator.chain import EmulatedPort, ServoChain
+from whexar.bus.emulator.faults import (
     EVENTS,
     Fault,
     FaultInjector,

@@ -8,10 +8,10 @@ from collections.abc import Iterator
 import dynamixel_sdk as dxl
 import pytest
 
-from whexar.actors.clock import monotonic, wait_until
-from whexar.bus.emulator import ServoChain
-from whexar.bus.pty import PACKET_GAP_S, PtyEmulator
+from whexar.bus.emulator.chain import ServoChain
+from whexar.bus.emulator.pty import PACKET_GAP_S, PtyEmulator
 from whexar.config import RobotConfig
+from whexar.runtime.clock import monotonic, wait_until
 
 CFG = RobotConfig()
 IDS = [sid for leg in CFG.legs for sid in leg.servo_ids]

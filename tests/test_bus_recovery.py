@@ -1,7 +1,7 @@
 """The bus scheduler's fault handling, end to end: fault plans on the emulator, events checked.
 
 Each test runs the real :class:`~whexar.actors.bus.BusScheduler` on virtual time against
-the in-process servo chain with a :class:`~whexar.bus.faults.FaultInjector` attached, and
+the in-process servo chain with a :class:`~whexar.bus.emulator.faults.FaultInjector` attached, and
 checks what the runtime said (events, states, stats, exit code) and what the servos were
 left with (the emulator's control tables).
 """
@@ -14,17 +14,12 @@ from typing import Any
 
 import pytest
 
-from whexar.actors.bus import EMULATORS, register_emulator
 from whexar.actors.messages import (
-    ActorFailed,
-    ActorStopped,
     BusLost,
     BusStats,
-    Event,
     HardwareFault,
     JointGoal,
     JointGoals,
-    SafeStop,
     ServoDegraded,
     ServoFault,
     ServoHealth,
@@ -34,11 +29,13 @@ from whexar.actors.messages import (
     ServoStates,
 )
 from whexar.bus import control_table as ct
-from whexar.bus.emulator import ServoChain
-from whexar.bus.faults import Fault, FaultInjector, FaultPlan, load_fault_plan
+from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
+from whexar.bus.emulator.faults import Fault, FaultInjector, FaultPlan, load_fault_plan
 from whexar.bus.protocol import Instruction, Packet
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES, servo_id
+from whexar.runtime.devices import DEVICES
+from whexar.runtime.messages import ActorFailed, ActorStopped, Event, SafeStop
 from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.bus import bus_graph
 
@@ -78,9 +75,9 @@ RECOVERY_EVENTS = (
 @pytest.fixture
 def chain() -> Iterator[ServoChain]:
     made = ServoChain.from_config(CFG)
-    register_emulator("test", made)
+    DEVICES.register(SERVO_CHAIN, "test", made)
     yield made
-    EMULATORS.pop("test", None)
+    DEVICES.unregister(SERVO_CHAIN, "test")
 
 
 def inject(chain: ServoChain, *faults: Fault, seed: int = 0) -> FaultInjector:
@@ -486,11 +483,11 @@ def test_same_fault_plan_gives_the_same_log() -> None:
     for _ in range(2):
         made = ServoChain.from_config(CFG)
         FaultInjector(plan).attach(made)
-        register_emulator("test", made)
+        DEVICES.register(SERVO_CHAIN, "test", made)
         try:
             result = run(graph(wiggle=True), duration=1.5)
         finally:
-            EMULATORS.pop("test", None)
+            DEVICES.unregister(SERVO_CHAIN, "test")
         assert result.events(ServoFault)
         assert result.events(ServoRecovered)
         assert result.events(HardwareFault)

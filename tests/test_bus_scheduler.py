@@ -8,9 +8,7 @@ from typing import Any
 
 import pytest
 
-from whexar.actors.bus import EMULATORS, register_emulator
 from whexar.actors.messages import (
-    ActorFailed,
     BusStats,
     GoalClamped,
     JointGoal,
@@ -20,10 +18,12 @@ from whexar.actors.messages import (
     ServoStates,
 )
 from whexar.bus import control_table as ct
-from whexar.bus.emulator import ServoChain
+from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.bus.protocol import Instruction, Packet
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, servo_id
+from whexar.runtime.devices import DEVICES
+from whexar.runtime.messages import ActorFailed
 from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.bus import bus_graph
 
@@ -36,9 +36,9 @@ COXA = JOINT_NAMES.index("coxa")
 @pytest.fixture
 def chain() -> Iterator[ServoChain]:
     made = ServoChain.from_config(CFG)
-    register_emulator("test", made)
+    DEVICES.register(SERVO_CHAIN, "test", made)
     yield made
-    EMULATORS.pop("test", None)
+    DEVICES.unregister(SERVO_CHAIN, "test")
 
 
 def graph(
@@ -130,11 +130,11 @@ def test_model_mismatch_names_the_servo_and_both_models() -> None:
     made = ServoChain.from_config(cfg)
     wrong = servo_id(0, "coxa")
     made.servos[wrong].table[0:2] = (321).to_bytes(2, "little")  # an MX-106 where an MX-64 is
-    register_emulator("test", made)
+    DEVICES.register(SERVO_CHAIN, "test", made)
     try:
         result = run(graph(), duration=1.0)
     finally:
-        EMULATORS.pop("test", None)
+        DEVICES.unregister(SERVO_CHAIN, "test")
     failed = result.events(ActorFailed)
     assert failed
     assert f"servo {wrong} (RF coxa) is a MX-106 (model 321)" in failed[0].error
@@ -247,18 +247,18 @@ def test_goal_outside_limits_is_clamped_and_reported(chain: ServoChain) -> None:
 
 def test_fast_sync_read_is_used_when_the_servos_answer_it() -> None:
     made = ServoChain.from_config(CFG, fast_sync_read=True)
-    register_emulator("test", made)
+    DEVICES.register(SERVO_CHAIN, "test", made)
     try:
         result = run(graph({"plan": "default"}), duration=0.3)
     finally:
-        EMULATORS.pop("test", None)
+        DEVICES.unregister(SERVO_CHAIN, "test")
     assert [m.mode for m in result.events(ReadModeChanged)] == ["fast_sync_read"]
     assert len(result.messages("state", of=ServoStates)[-1].joints) == 24
 
 
 def test_fast_sync_read_falls_back_when_it_stops_working() -> None:
     made = ServoChain.from_config(CFG, fast_sync_read=True)
-    register_emulator("test", made)
+    DEVICES.register(SERVO_CHAIN, "test", made)
 
     async def scenario(h: Harness) -> None:
         await h.wait_for(ServoStates)
@@ -272,7 +272,7 @@ def test_fast_sync_read_falls_back_when_it_stops_working() -> None:
     try:
         result = run(graph({"plan": "default"}), scenario)
     finally:
-        EMULATORS.pop("test", None)
+        DEVICES.unregister(SERVO_CHAIN, "test")
     assert result.exit_code == 0
 
 
@@ -283,11 +283,11 @@ def test_same_run_gives_the_same_log() -> None:
     digests = []
     for _ in range(2):
         made = ServoChain.from_config(CFG)
-        register_emulator("test", made)
+        DEVICES.register(SERVO_CHAIN, "test", made)
         try:
             digests.append(run(graph(wiggle={}), duration=0.5).log.digest())
         finally:
-            EMULATORS.pop("test", None)
+            DEVICES.unregister(SERVO_CHAIN, "test")
     assert digests[0] == digests[1]
 
 
@@ -347,7 +347,7 @@ def test_bad_bus_configuration_is_refused_before_any_byte(
 
 def test_scheduler_over_a_pty_in_real_time_runs_and_stops_cleanly() -> None:
     """The thread-owned port path: real SDK, real serial I/O, real time, clean stop."""
-    from whexar.bus.pty import PtyEmulator
+    from whexar.bus.emulator.pty import PtyEmulator
 
     made = ServoChain.from_config(CFG, return_delay_us=20)
     with PtyEmulator(made, realtime=False) as emulator:

@@ -8,7 +8,7 @@ import anyio
 import pytest
 from anyio import WouldBlock
 
-from whexar.actors.channels import (
+from whexar.runtime.channels import (
     DEFAULT_CAPACITY,
     Channel,
     Inbox,
@@ -16,8 +16,8 @@ from whexar.actors.channels import (
     Policy,
     capacity_or_default,
 )
-from whexar.actors.clock import Clock, run
-from whexar.actors.messages import Heartbeat, Message, TickOverrun
+from whexar.runtime.clock import Clock, run
+from whexar.runtime.messages import Heartbeat, Message, TickOverrun
 from whexar.testing import run_actors
 
 

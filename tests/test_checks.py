@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from whexar._checks import non_negative, positive, real
 from whexar.errors import UsageError
 from whexar.kinematics.wheels import wheel_straight
+from whexar.runtime.checks import non_negative, positive, real
 
 
 @pytest.mark.parametrize("bad", ["1.0", None, True, math.nan, -math.inf, [1.0]])

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from whexar.actors.runtime import EXIT_ESCALATED
 from whexar.bench.runtime import run as bench_run
 from whexar.cli import main
+from whexar.runtime.supervisor import EXIT_ESCALATED
 
 DEMO = Path(__file__).resolve().parents[1] / "config" / "graphs" / "demo.toml"
 

@@ -8,7 +8,7 @@ import math
 import anyio
 import pytest
 
-from whexar.actors.clock import Clock, VirtualEventLoop, VirtualTimeDeadlockError, run
+from whexar.runtime.clock import Clock, VirtualEventLoop, VirtualTimeDeadlockError, run
 
 
 def test_virtual_time_jumps_exactly_to_each_deadline() -> None:

@@ -29,9 +29,9 @@ from whexar.actors.messages import (
     SensorFrameGap,
     SensorFrameRejected,
 )
-from whexar.bus.sensor_frame import Frame, FrameDecoder, Rejected
 from whexar.config import RobotConfig
 from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+from whexar.sensors.frame import Frame, FrameDecoder, Rejected
 from whexar.testing import run_actors
 from whexar.testing.sensors import sensor_graph
 

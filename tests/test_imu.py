@@ -3,7 +3,7 @@
 Register values and sensitivities are written out here from the datasheet
 (DocID025715, Table 3 and section 7), not taken from the driver, so a wrong
 constant in the driver fails a test. The reader runs against
-:class:`~whexar.testing.i2c.FakeLsm9ds1` through the real runtime.
+:class:`~whexar.sensors.imu_emulator.FakeLsm9ds1` through the real runtime.
 """
 
 from __future__ import annotations
@@ -15,23 +15,23 @@ from pathlib import Path
 
 import pytest
 
-from whexar.actors.imu import FAKES, ImuReader, open_bus, register_fake
+from whexar.actors.imu import ImuReader, open_bus
 from whexar.actors.messages import (
-    ActorFailed,
     BodyTilt,
-    Event,
     ImuSample,
     SensorLinkDown,
     SensorLinkFresh,
     SensorLinkStale,
     SensorLinkUp,
-    TickOverrun,
 )
-from whexar.bus import lsm9ds1
-from whexar.bus.lsm9ds1 import Lsm9ds1, choose_odr, decode_xyz, settings
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
+from whexar.runtime.devices import DEVICES
+from whexar.runtime.messages import ActorFailed, Event, TickOverrun
+from whexar.sensors import lsm9ds1
+from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
+from whexar.sensors.lsm9ds1 import Lsm9ds1, choose_odr, decode_xyz, settings
 from whexar.testing import Harness, RunResult, Scenario, run_actors, thesis
-from whexar.testing.i2c import FakeLsm9ds1, FakeSMBus, imu_graph
+from whexar.testing.imu import imu_graph
 
 G = 9.81
 """The table's m/s² per g (6.1.3 compares its readings with 9.81)."""
@@ -50,9 +50,9 @@ def chip() -> Iterator[FakeLsm9ds1]:
     """A fake LSM9DS1 at 0x6B on fake bus 1, registered as ``fake:test``."""
     bus = FakeSMBus(1)
     made = bus.attach(0x6B, FakeLsm9ds1())
-    register_fake("test", bus)
+    DEVICES.register(I2C_BUS, "test", bus)
     yield made
-    FAKES.pop("test", None)
+    DEVICES.unregister(I2C_BUS, "test")
 
 
 def driver(accel_g: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> tuple[Lsm9ds1, FakeLsm9ds1]:

@@ -19,9 +19,9 @@ from typing import Any
 import anyio
 import pytest
 
-from whexar.actors.actor import Actor, ActorParams
-from whexar.actors.clock import run
-from whexar.actors.messages import (
+from whexar.runtime.actor import Actor, ActorParams
+from whexar.runtime.clock import run
+from whexar.runtime.messages import (
     ActorEscalated,
     ActorFailed,
     ActorReady,
@@ -34,8 +34,8 @@ from whexar.actors.messages import (
     StopRequested,
     message,
 )
-from whexar.actors.runtime import EXIT_CLEAN, EXIT_ESCALATED, Runtime, describe
-from whexar.actors.wiring import build_graph
+from whexar.runtime.supervisor import EXIT_CLEAN, EXIT_ESCALATED, Runtime, describe
+from whexar.runtime.wiring import build_graph
 from whexar.testing import Harness, MessageLog, RunResult, run_actors
 
 PULSE = "whexar.testing:Pulse"
@@ -642,10 +642,10 @@ import sys
 
 import anyio
 
-from whexar.actors.clock import run
-from whexar.actors.messages import ActorStopped
-from whexar.actors.runtime import Runtime
-from whexar.actors.wiring import build_graph
+from whexar.runtime.clock import run
+from whexar.runtime.messages import ActorStopped
+from whexar.runtime.supervisor import Runtime
+from whexar.runtime.wiring import build_graph
 
 GRAPH = json.loads({graph!r})
 

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from whexar.bus.sensor_frame import (
+from whexar.sensors.frame import (
     MAX_FRAME_BYTES,
     Frame,
     FrameDecoder,

@@ -15,7 +15,6 @@ from pathlib import Path
 import pytest
 
 from whexar.actors.messages import (
-    ActorFailed,
     BodyTilt,
     LegLoads,
     ObstacleRanges,
@@ -28,16 +27,18 @@ from whexar.actors.messages import (
     SensorLinkUp,
     SensorStats,
 )
-from whexar.actors.sensors import BOARD_EMULATORS, register_board
-from whexar.bus.board_emulator import (
+from whexar.cli import main
+from whexar.config import RobotConfig
+from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+from whexar.runtime.devices import DEVICES
+from whexar.runtime.messages import ActorFailed
+from whexar.sensors.board_emulator import (
+    SENSOR_BOARD,
     SensorBoardEmulator,
     counts_for_acceleration,
     counts_for_distance,
 )
-from whexar.bus.sensor_frame import encode_frame
-from whexar.cli import main
-from whexar.config import RobotConfig
-from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+from whexar.sensors.frame import encode_frame
 from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.sensors import sensor_graph
 
@@ -49,12 +50,12 @@ WIRE_S_PER_BYTE = 10 / 1_000_000
 @pytest.fixture(autouse=True)
 def _clean_registry() -> Iterator[None]:
     yield
-    BOARD_EMULATORS.clear()
+    DEVICES.clear(SENSOR_BOARD)
 
 
 def board(name: str = "b", **kw: object) -> SensorBoardEmulator:
     emulator = SensorBoardEmulator(**kw)  # type: ignore[arg-type]
-    register_board(name, emulator)
+    DEVICES.register(SENSOR_BOARD, name, emulator)
     return emulator
 
 
@@ -93,7 +94,7 @@ def test_ir_distances_follow_eq_5_5_and_the_range_limits() -> None:
     assert last.distances_m[0] == pytest.approx(0.40, abs=0.005)  # one count's quantisation
     assert last.distances_m[1] == CFG.ir.min_distance_mm / 1000
 
-    BOARD_EMULATORS.clear()
+    DEVICES.clear(SENSOR_BOARD)
     board(counts={"ir1": 60, "ir2": 0})  # beyond 150 cm; no reflection at all
     far = run(duration=0.5).messages("ranges", of=ObstacleRanges)[-1]
     assert far.distances_m == (math.inf, math.inf)
@@ -255,7 +256,7 @@ def test_thesis_mode_publishes_plain_frames_without_seq() -> None:
 
     checked = run(scenario=scenario)
     assert checked.events(of=SensorFrameRejected)[0].reason.startswith("no checksum")
-    BOARD_EMULATORS.clear()
+    DEVICES.clear(SENSOR_BOARD)
     emulator = board()
     thesis = run(scenario=scenario, protocol="thesis")
     frames = thesis.messages("frames", of=SensorFrame)
@@ -295,7 +296,7 @@ def test_same_inputs_same_messages() -> None:
             await h.sleep(0.6)
 
         digests.append(run(scenario=scenario).digest)
-        BOARD_EMULATORS.clear()
+        DEVICES.clear(SENSOR_BOARD)
     assert digests[0] == digests[1]
 
 

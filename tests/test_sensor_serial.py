@@ -16,14 +16,9 @@ from pathlib import Path
 
 import pytest
 
-from whexar.actors.messages import (
-    SensorFrame,
-    SensorFrameGap,
-    SensorLinkDown,
-    SensorLinkUp,
-)
-from whexar.bus.sensor_frame import encode_frame
+from whexar.actors.messages import SensorFrame, SensorFrameGap, SensorLinkDown, SensorLinkUp
 from whexar.cli import main
+from whexar.sensors.frame import encode_frame
 from whexar.testing import Harness, run_actors
 from whexar.testing.sensors import sensor_graph
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from whexar.actors.messages import (
+from whexar.runtime.messages import (
     ActorReady,
     ActorStarting,
     Event,
@@ -15,7 +15,7 @@ from whexar.actors.messages import (
     Message,
     StopRequested,
 )
-from whexar.actors.wiring import WiringError, build_graph, parse_graph
+from whexar.runtime.wiring import WiringError, build_graph, parse_graph
 from whexar.testing import HARNESS, Harness, LogEntry, MessageLog, run_actors
 
 PULSE = "whexar.testing:Pulse"

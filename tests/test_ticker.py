@@ -6,10 +6,10 @@ from typing import Any
 
 import pytest
 
-from whexar.actors.clock import Clock, run
-from whexar.actors.messages import Event, Heartbeat, TickOverrun
-from whexar.actors.ticker import Tick, Ticker
 from whexar.errors import UsageError
+from whexar.runtime.clock import Clock, run
+from whexar.runtime.messages import Event, Heartbeat, TickOverrun
+from whexar.runtime.ticker import Tick, Ticker
 from whexar.testing import run_actors
 
 

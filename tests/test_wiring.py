@@ -7,17 +7,17 @@ from typing import Any
 
 import pytest
 
-from whexar.actors.actor import Actor, Input, Output
-from whexar.actors.channels import Policy
-from whexar.actors.messages import Event, Heartbeat, Message
-from whexar.actors.wiring import (
+from whexar.errors import MISSING, ConfigError, Problem
+from whexar.runtime.actor import Actor, Input, Output
+from whexar.runtime.channels import Policy
+from whexar.runtime.messages import Event, Heartbeat, Message
+from whexar.runtime.wiring import (
     EVENTS_CHANNEL,
     RUNTIME,
     WiringError,
     build_graph,
     load_graph,
 )
-from whexar.errors import MISSING, ConfigError, Problem
 from whexar.testing import Pulse, Sink
 
 PULSE = "whexar.testing:Pulse"
@@ -80,7 +80,7 @@ def test_a_good_graph_resolves_classes_params_ports_and_channels() -> None:
             ],
             "channels": {
                 "beats": channel(),
-                "copy": {"message": "whexar.actors.messages:Heartbeat", "policy": "queue"},
+                "copy": {"message": "whexar.runtime.messages:Heartbeat", "policy": "queue"},
             },
         }
     )

@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from whexar import __version__
-from whexar.actors.messages import Message
-from whexar.actors.wiring import EVENTS_CHANNEL
 from whexar.errors import ConfigError, UsageError
 from whexar.robot import LEG_NAMES, POSITIONING_JOINTS, leg_index
+from whexar.runtime.messages import Message
+from whexar.runtime.wiring import EVENTS_CHANNEL
 
 if TYPE_CHECKING:
     from whexar.bench import Report
@@ -205,9 +205,9 @@ def _event_line(channel: str, msg: Message) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from whexar.actors.clock import run as run_loop
-    from whexar.actors.runtime import Runtime
-    from whexar.actors.wiring import load_graph
+    from whexar.runtime.clock import run as run_loop
+    from whexar.runtime.supervisor import Runtime
+    from whexar.runtime.wiring import load_graph
 
     graph = load_graph(args.graph)
     runtime = Runtime(graph, handle_signals=True, observer=None if args.quiet else _event_line)
@@ -269,9 +269,9 @@ def _emulate(args: argparse.Namespace) -> int:
     import threading
     from types import FrameType
 
-    from whexar.bus.emulator import ServoChain, TimingModel
-    from whexar.bus.faults import FaultInjector, load_fault_plan
-    from whexar.bus.pty import PtyEmulator
+    from whexar.bus.emulator.chain import ServoChain, TimingModel
+    from whexar.bus.emulator.faults import FaultInjector, load_fault_plan
+    from whexar.bus.emulator.pty import PtyEmulator
     from whexar.config import RobotConfig, load_config
 
     cfg = RobotConfig() if args.servos is None else load_config(args.servos)
@@ -343,10 +343,10 @@ def _bus_scan(args: argparse.Namespace) -> int:
 
 
 def _sensors(args: argparse.Namespace) -> int:
-    from whexar.actors.clock import run as run_loop
-    from whexar.actors.runtime import Runtime
-    from whexar.actors.wiring import build_graph
     from whexar.monitor import observer
+    from whexar.runtime.clock import run as run_loop
+    from whexar.runtime.supervisor import Runtime
+    from whexar.runtime.wiring import build_graph
     from whexar.testing.sensors import sensor_graph
 
     params: dict[str, object] = {}

@@ -24,33 +24,37 @@ from __future__ import annotations
 
 import itertools
 import math
-import re
-import tomllib
-import types
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Annotated, Any, Final, Literal, Self
+from typing import Annotated, Any, Final, Literal
 
 from pydantic import (
-    BaseModel,
-    ConfigDict,
     Discriminator,
     Field,
     Tag,
     TypeAdapter,
     ValidationError,
-    ValidationInfo,
     field_validator,
-    model_validator,
 )
 
 from whexar.bus.plan import PRESETS, ReadPlan
+from whexar.bus.protocol import MAX_ID
 from whexar.errors import MISSING, ConfigError, Problem
 from whexar.kinematics.gait import GAIT_RANKING
 from whexar.kinematics.indices import STANDARD_GRAVITY, SUPPLY_VOLTAGE, WHEXAR_MASS
 from whexar.kinematics.sensing import IR_EXPONENT, IR_K_CM
 from whexar.robot import JOINT_NAMES, LEG_NAMES, POSITIONING_JOINTS, servo_id
+from whexar.runtime.schema import (
+    CheckedSection,
+    Finite,
+    NonNegative,
+    Positive,
+    Section,
+    format_path,
+    problem_from_error,
+    read_toml,
+)
 
 ServoModelName = Literal["MX-28", "MX-64", "MX-106"]
 
@@ -63,42 +67,8 @@ only with 65 mm, so the DH value drives the kinematics and the check allows
 a few millimetres of measuring slack, not a different leg.
 """
 
-SERVO_ID_RANGE: Final = (0, 252)
-"""IDs a Dynamixel (Protocol 2.0) accepts; 253–255 are reserved (ROBOTIS e-manual)."""
-
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 AdcCounts = Annotated[int, Field(ge=0, le=1023)]
 """A 10-bit ATmega2560 ADC reading."""
-
-
-class Section(BaseModel):
-    """Base of every configuration model: strict keys, immutable values."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-    def problems(self, at: str) -> list[Problem]:
-        """Relational problems inside this section; ``at`` is its key path."""
-        return []
-
-
-class CheckedSection(Section):
-    """A document root that checks its own relations when built directly in code.
-
-    The loaders (:func:`load_config`, ``parse_fault_plan``) validate with
-    ``context={"defer_relations": True}`` and collect :meth:`problems` with
-    their key paths themselves; anything else gets them as one ValueError.
-    """
-
-    @model_validator(mode="after")
-    def _relations(self, info: ValidationInfo) -> Self:
-        if isinstance(info.context, dict) and info.context.get("defer_relations"):
-            return self
-        found = self.problems("")
-        if found:
-            raise ValueError("; ".join(str(p) for p in found))
-        return self
 
 
 # --------------------------------------------------------------------------- robot & body
@@ -280,7 +250,7 @@ class LegSpec(Section):
 
     def problems(self, at: str) -> list[Problem]:
         found: list[Problem] = []
-        lo, hi = SERVO_ID_RANGE
+        lo, hi = 0, MAX_ID
         for j, sid in enumerate(self.servo_ids):
             if not lo <= sid <= hi:
                 found.append(
@@ -327,10 +297,6 @@ def _check_legs(legs: Sequence[LegSpec], at: str) -> list[Problem]:
 # --------------------------------------------------------------------------- links
 
 
-_TAGS: Final = ("name", "table")
-"""Tags of ``BusSpec.plan``'s union, left out of a problem's key path."""
-
-
 class BusSpec(Section):
     """The Dynamixel bus behind the U2D2 adapter (5.3.6, 6.1.1)."""
 
@@ -345,9 +311,10 @@ class BusSpec(Section):
     return_delay_time_us: int = Field(default=20, ge=0, le=508, multiple_of=2)
     """Return Delay Time; the register counts 2 µs units (thesis used 20 µs, 5.3.6)."""
     plan: Annotated[
-        Annotated[str, Tag("name")] | Annotated[ReadPlan, Tag("table")],
-        # Tagged, so a bad table is reported as a table, not also as "not a string".
-        Discriminator(lambda v: "name" if isinstance(v, str) else "table"),
+        Annotated[str, Tag("<name>")] | Annotated[ReadPlan, Tag("<table>")],
+        # Tagged, so a bad table is reported as a table, not also as "not a string";
+        # angle brackets keep the tag out of a problem's key path (whexar.runtime.schema).
+        Discriminator(lambda v: "<name>" if isinstance(v, str) else "<table>"),
     ] = "default"
     """A read plan: a preset's name (``whexar.bus.plan.PRESETS``) or a ``[bus.plan]`` table."""
     on_stop: Literal["torque_off", "hold"] = "torque_off"
@@ -687,7 +654,7 @@ def _section_problems(name: str, value: object) -> list[Problem]:
             p
             for key, item in value.items()
             if isinstance(item, Section)
-            for p in item.problems(f"{name}.{_key(key)}")
+            for p in item.problems(format_path((name, key)))
         ]
     return []
 
@@ -743,7 +710,7 @@ def _check_stances(cfg: RobotConfig) -> list[Problem]:
         except KinematicsError as exc:
             found.append(
                 Problem(
-                    f"stances.{_key(name)}",
+                    format_path(("stances", name)),
                     {"reach_mm": stance.reach_mm, "height_mm": stance.height_mm},
                     f"a stance every leg can reach within its joint limits ({exc})",
                 )
@@ -761,87 +728,6 @@ _CROSS_CHECKS: Final[tuple[Callable[[RobotConfig], list[Problem]], ...]] = (
 # --------------------------------------------------------------------------- loading
 
 
-def _key(part: object) -> str:
-    """One component of a key path, quoted as TOML would need it."""
-    if isinstance(part, int):
-        return f"[{part}]"
-    text = str(part)
-    return text if re.fullmatch(r"[A-Za-z0-9_]+", text) else f'"{text}"'
-
-
-def format_path(loc: Sequence[object]) -> str:
-    """``("legs", 1, "servo_ids", 0)`` → ``legs[1].servo_ids[0]``."""
-    out = ""
-    for part in loc:
-        piece = _key(part)
-        out += piece if piece.startswith("[") or not out else f".{piece}"
-    return out
-
-
-def _model_at(root: type[BaseModel], loc: Sequence[object]) -> type[BaseModel] | None:
-    """The model class that a location inside a ``root`` document points into."""
-    annotation: object = root
-    for part in loc:
-        annotation = _unwrap(annotation)
-        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-            field = annotation.model_fields.get(str(part))
-            if field is None:
-                return None
-            annotation = field.annotation
-        else:
-            args = typing.get_args(annotation)
-            if not args:
-                return None
-            annotation = args[-1] if typing.get_origin(annotation) is dict else args[0]
-    annotation = _unwrap(annotation)
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    return None
-
-
-def _unwrap(annotation: object) -> object:
-    """Strip ``Optional``/``Annotated`` so a field's model class shows through."""
-    origin = typing.get_origin(annotation)
-    if origin is typing.Annotated:
-        return _unwrap(typing.get_args(annotation)[0])
-    if origin in (typing.Union, types.UnionType):
-        members = [a for a in typing.get_args(annotation) if a is not type(None)]
-        return _unwrap(members[0]) if len(members) == 1 else annotation
-    return annotation
-
-
-def problem_from_error(
-    error: Mapping[str, Any],
-    root: type[BaseModel] | None = None,
-    prefix: Sequence[object] = (),
-) -> Problem:
-    """One pydantic error as a :class:`Problem`; ``root`` is the model validated.
-
-    ``prefix`` is prepended to the error's location (a nested document
-    validated on its own, such as an actor's ``params``).
-    """
-    loc = tuple(error["loc"])
-    # The tag of the tagged union bus.plan (a preset's name or a table) is no key.
-    loc = tuple(p for i, p in enumerate(loc) if not (i and loc[i - 1] == "plan" and p in _TAGS))
-    # pydantic locates a bad dict key as (..., key, "[key]"): name the key itself.
-    key_itself = bool(loc) and loc[-1] == "[key]"
-    if key_itself:
-        loc = loc[:-1]
-    path = format_path((*prefix, *loc))
-    kind = error["type"]
-    if kind == "missing":
-        return Problem(path, MISSING, "required key is missing")
-    if kind == "extra_forbidden":
-        parent = _model_at(root or RobotConfig, loc[:-1])
-        fields = parent.model_fields.items() if parent is not None else ()
-        known = ", ".join(field.alias or name for name, field in fields)
-        return Problem(path, error.get("input"), f"unknown key; allowed here: {known}")
-    message = str(error["msg"]).removeprefix("Value error, ")
-    if key_itself:
-        message = f"a valid key name: {message}"
-    return Problem(path, error.get("input"), message)
-
-
 def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConfig:
     """Validate a configuration document (as parsed from TOML) into a :class:`RobotConfig`.
 
@@ -856,7 +742,7 @@ def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConf
         if found:
             raise ConfigError(source, found)
         return cfg
-    problems = [problem_from_error(error) for error in errors]
+    problems = [problem_from_error(error, RobotConfig) for error in errors]
     # Sections that validated on their own still get their relational checks,
     # so a bad key in one section does not hide a duplicate ID in another.
     failed = {e["loc"][0] for e in errors if e["loc"]}
@@ -869,32 +755,6 @@ def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConf
             continue
         problems.extend(_section_problems(name, section))
     raise ConfigError(source, problems)
-
-
-def _syntax_problem(exc: tomllib.TOMLDecodeError, text: str) -> Problem:
-    match = re.search(r"line (\d+), column (\d+)", str(exc))
-    if match is None:
-        return Problem("(file)", MISSING, f"valid TOML: {exc}")
-    line = int(match.group(1))
-    lines = text.splitlines()
-    shown = lines[line - 1].strip() if 0 < line <= len(lines) else ""
-    return Problem(f"line {line}", shown, f"valid TOML: {exc}")
-
-
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file; a missing file or a syntax error is a :class:`ConfigError`."""
-    source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise ConfigError(
-            source, [Problem("(file)", source, f"a readable TOML file ({reason})")]
-        ) from None
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(source, [_syntax_problem(exc, text)]) from None
 
 
 def load_config(path: str | Path) -> RobotConfig:

@@ -8,21 +8,30 @@ Three families, as h11 and httpcore separate them:
   status packet, a corrupted sensor frame). The runtime turns these into events.
 * :class:`DeviceGoneError` — a device stopped answering or its port vanished.
 
-Library exceptions are translated into these at the edge of the project.
+The root of the tree (:class:`WhexarError`, :class:`UsageError`,
+:class:`ConfigError` and its :class:`Problem` list) belongs to the actor
+runtime, which stands alone (:mod:`whexar.runtime.errors`); it is named here
+too, so that every package above the runtime imports its errors from this
+one module. Library exceptions are translated into these at the edge of the
+project.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from whexar.runtime.errors import MISSING, ConfigError, Problem, UsageError, WhexarError
 
-
-class WhexarError(Exception):
-    """Base of every error whexar raises on purpose."""
-
-
-class UsageError(WhexarError, ValueError):
-    """The caller's input is wrong; the message names the offending value."""
+__all__ = [
+    "MISSING",
+    "ConfigError",
+    "DeviceError",
+    "DeviceGoneError",
+    "JointLimitError",
+    "KinematicsError",
+    "Problem",
+    "UnreachableError",
+    "UsageError",
+    "WhexarError",
+]
 
 
 class DeviceError(WhexarError):
@@ -31,40 +40,6 @@ class DeviceError(WhexarError):
 
 class DeviceGoneError(WhexarError):
     """A device or its port stopped answering."""
-
-
-@dataclass(frozen=True)
-class Problem:
-    """One thing wrong with a configuration: where, what was found, what is allowed."""
-
-    path: str
-    value: object
-    allowed: str
-
-    def __str__(self) -> str:
-        shown = "(missing)" if self.value is MISSING else repr(self.value)
-        where = self.path or "(top level)"
-        return f"{where} = {shown}: {self.allowed}"
-
-
-class _Missing:
-    def __repr__(self) -> str:
-        return "(missing)"
-
-
-MISSING: object = _Missing()
-"""Stands for the value of a key that is absent from a configuration."""
-
-
-class ConfigError(UsageError):
-    """A configuration has one or more problems; :attr:`problems` lists them all."""
-
-    def __init__(self, source: str, problems: Sequence[Problem]) -> None:
-        self.source = source
-        self.problems = tuple(problems)
-        lines = "\n".join(f"  {p}" for p in self.problems)
-        count = len(self.problems)
-        super().__init__(f"{source}: {count} problem{'s' if count != 1 else ''}\n{lines}")
 
 
 class KinematicsError(UsageError):

@@ -16,7 +16,6 @@ from collections.abc import Callable
 from typing import Any
 
 from whexar.actors.messages import (
-    Message,
     SensorFrame,
     SensorFrameGap,
     SensorFrameRejected,
@@ -25,8 +24,9 @@ from whexar.actors.messages import (
     SensorLinkStale,
     SensorLinkUp,
 )
-from whexar.actors.wiring import EVENTS_CHANNEL
-from whexar.bus.sensor_frame import ACC_KEYS, FSR_KEYS, IR_KEYS
+from whexar.runtime.messages import Message
+from whexar.runtime.wiring import EVENTS_CHANNEL
+from whexar.sensors.frame import ACC_KEYS, FSR_KEYS, IR_KEYS
 
 SENSOR_EVENTS = (
     SensorLinkUp,

@@ -46,12 +46,11 @@ import math
 import struct
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Final
+from typing import Final
 
 import anyio
 from pydantic import Field
 
-from whexar.actors.actor import Actor, ActorParams, Input, Output
 from whexar.actors.messages import (
     BusLost,
     BusStats,
@@ -87,13 +86,16 @@ from whexar.bus.sdk import (
 from whexar.config import RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError
 from whexar.robot import JOINT_NAMES, LEG_NAMES
+from whexar.runtime.actor import Actor, ActorParams, Input, Output
+from whexar.runtime.devices import DEVICES
 
 CRITICAL_JOINTS: Final = frozenset({"femur", "tibia"})
 """Joints whose loss leaves a leg unable to carry the body: a safe stop (issue brief)."""
 FAST_FALLBACK_AFTER: Final = 3
 """Consecutive Fast Sync Read failures, each healed by Sync Read, before falling back."""
 EMULATOR: Final = "emulator"
-"""The port name of the in-process servo emulator; ``emulator:NAME`` picks a registered one."""
+"""The port name of a fresh in-process servo emulator; ``emulator:NAME`` opens the chain
+registered as NAME (:data:`~whexar.bus.emulator.chain.SERVO_CHAIN`)."""
 
 _REG_POSITION = ct.MODELS["MX-64"].register("present_position")
 _TORQUE = ct.MODELS["MX-64"].register("torque_enable")
@@ -107,18 +109,6 @@ _pack_i32 = struct.Struct("<i").pack
 _MODE_VELOCITY: Final = 1
 _MODE_POSITION: Final = 3
 """Operating Mode (11): 1 velocity control (the wheel), 3 position control (e-manual)."""
-
-EMULATORS: dict[str, Any] = {}
-"""In-process servo chains by name, for ``port = "emulator:NAME"`` (tests, simulation).
-
-A chain registered here outlives the actor (it is the hardware), so a
-restarted scheduler finds the servos as its predecessor left them.
-"""
-
-
-def register_emulator(name: str, chain: Any) -> None:
-    """Make ``chain`` (a :class:`~whexar.bus.emulator.ServoChain`) the port ``emulator:name``."""
-    EMULATORS[name] = chain
 
 
 @dataclass(slots=True)
@@ -322,22 +312,19 @@ class BusScheduler(Actor):
     def _open_owner(self) -> PortOwner:
         name = self.params.port or self.cfg.bus.port
         if name == EMULATOR or name.startswith(EMULATOR + ":"):
-            from whexar.bus.emulator import EmulatedPort, ServoChain
+            from whexar.bus.emulator.chain import SERVO_CHAIN, EmulatedPort, ServoChain
 
             if name == EMULATOR:
                 chain = ServoChain.from_config(
                     self.cfg, fast_sync_read=self.params.emulator_fast_sync_read
                 )
                 if self.params.faults:
-                    from whexar.bus.faults import FaultInjector, load_fault_plan
+                    from whexar.bus.emulator.faults import FaultInjector, load_fault_plan
 
                     FaultInjector(load_fault_plan(self.params.faults)).attach(chain)
             else:
                 key = name.split(":", 1)[1]
-                if key not in EMULATORS:
-                    known = ", ".join(EMULATORS) or "none registered"
-                    raise DeviceGoneError(f"no emulated servo chain {key!r} ({known})")
-                chain = EMULATORS[key]
+                chain = DEVICES.get(SERVO_CHAIN, key, setting=f"port = {name!r}")
             port = EmulatedPort(chain, now=self.clock.now)
             port.setPortName(name)  # errors name the configured port, as a device's do
             return InlinePortOwner(port, self.clock)

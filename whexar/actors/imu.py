@@ -7,7 +7,7 @@ it into body tilt (Žák 2023, 5.3.4, 5.4, eq. 5.6–5.7). This actor owns that
 link (one device, one owner) and does it on the runtime's clock:
 
 1. **Open**: open ``/dev/i2c-N``, probe WHO_AM_I, write the configuration
-   and read it back (:mod:`whexar.bus.lsm9ds1`); the chip samples at the
+   and read it back (:mod:`whexar.sensors.lsm9ds1`); the chip samples at the
    lowest ODR at or above ``imu.rate_hz``. Then :meth:`~ImuReader.ready`.
 2. **Sample** every ``1/rate_hz`` on a deadline ticker: one read of
    STATUS_REG + angular rate, one of acceleration. A read whose data-ready
@@ -49,13 +49,12 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from typing import Final, Protocol, TypeVar
+from typing import Final, TypeVar
 
 import anyio
 import anyio.to_thread
 from pydantic import Field
 
-from whexar.actors.actor import Actor, ActorParams, Output
 from whexar.actors.messages import (
     BodyTilt,
     ImuSample,
@@ -64,38 +63,20 @@ from whexar.actors.messages import (
     SensorLinkStale,
     SensorLinkUp,
 )
-from whexar.bus.lsm9ds1 import ODR_HZ, Lsm9ds1, Reading, Settings, SMBusLike, settings
 from whexar.config import RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
 from whexar.kinematics.sensing import tilt_from_acceleration
+from whexar.runtime.actor import Actor, ActorParams, Output
+from whexar.runtime.devices import DEVICES
+from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
+from whexar.sensors.lsm9ds1 import ODR_HZ, I2CBus, Lsm9ds1, Reading, Settings, settings
 
 T = TypeVar("T")
 
-FAKE: Final = "fake"
-"""``device = "fake"``: a fresh in-process fake chip; ``"fake:NAME"`` picks a registered bus."""
 RETRY_PERIOD_S: Final = 0.5
 """How often a lost link is opened again, and a stale chip's configuration checked."""
 STALE_MIN_PERIODS: Final = 2
 """``stale_after_s`` must span this many sample periods: one late sample is not a stale link."""
-
-
-class I2CBus(SMBusLike, Protocol):
-    """An opened I²C adapter: the driver's calls, and ``close``."""
-
-    def close(self) -> None: ...
-
-
-FAKES: dict[str, I2CBus] = {}
-"""In-process I²C buses by name, for ``device = "fake:NAME"`` (tests, simulation).
-
-A bus registered here outlives the actor (it is the hardware), so a
-restarted reader finds the chip as its predecessor left it.
-"""
-
-
-def register_fake(name: str, bus: I2CBus) -> None:
-    """Make ``bus`` (a :class:`~whexar.testing.i2c.FakeSMBus`) the device ``fake:name``."""
-    FAKES[name] = bus
 
 
 def open_bus(number: int) -> I2CBus:
@@ -121,7 +102,8 @@ class ImuReader(Actor):
         rate_hz: float | None = Field(None, gt=0, le=ODR_HZ[-1], allow_inf_nan=False)
         """Overrides ``imu.rate_hz``."""
         device: str | None = Field(None, pattern=r"^fake(:.+)?$")
-        """``None``: the real ``/dev/i2c-N``; ``"fake"`` or ``"fake:NAME"``: an in-process fake."""
+        """``None``: the real ``/dev/i2c-N``; ``"fake"``: a fresh fake chip; ``"fake:NAME"``: the
+        fake bus registered as NAME (:data:`~whexar.sensors.imu_emulator.I2C_BUS`)."""
         retry_period_s: float = Field(RETRY_PERIOD_S, gt=0, allow_inf_nan=False)
         """How often a lost link is opened again."""
 
@@ -172,20 +154,12 @@ class ImuReader(Actor):
         number = self.bus_number
         if device is None:
             return lambda: open_bus(number)
-        if device == FAKE:
-            from whexar.testing.i2c import FakeLsm9ds1, FakeSMBus
-
+        if device == I2C_BUS.scheme:
             fake = FakeSMBus(number)
             fake.attach(self.address, FakeLsm9ds1())
             return lambda: fake
         key = device.split(":", 1)[1]
-        if key not in FAKES:
-            known = ", ".join(sorted(FAKES)) or "none"
-            raise UsageError(
-                f"device = {device!r}: no fake I²C bus registered as {key!r} "
-                f"(registered: {known}); use whexar.actors.imu.register_fake"
-            )
-        registered = FAKES[key]
+        registered = DEVICES.get(I2C_BUS, key, setting=f"device = {device!r}")
         return lambda: registered
 
     async def _call(self, fn: Callable[[], T]) -> T:
@@ -347,12 +321,8 @@ class ImuReader(Actor):
 
 
 __all__ = [
-    "FAKE",
-    "FAKES",
     "RETRY_PERIOD_S",
     "STALE_MIN_PERIODS",
-    "I2CBus",
     "ImuReader",
     "open_bus",
-    "register_fake",
 ]

@@ -4,7 +4,7 @@ Theory of operation
 -------------------
 The ATmega2560 board sends a text frame every 1/frame-rate seconds
 (``firmware/PROTOCOL.md``; Žák 2023, 5.4). The reader feeds whatever bytes
-arrive to the sans-IO :class:`~whexar.bus.sensor_frame.FrameDecoder` and,
+arrive to the sans-IO :class:`~whexar.sensors.frame.FrameDecoder` and,
 for each frame, publishes in the same loop iteration:
 
 * :class:`SensorFrame` — everything in the frame, raw and converted;
@@ -34,9 +34,9 @@ After the first valid frame of each connection (when the board's bootloader
 has handed over to the sketch) the reader sends ``rate=N#`` so that the
 board's frame rate is the configured one.
 
-The port is a device or a pty (pyserial-asyncio, :mod:`whexar.bus.serial_link`),
+The port is a device or a pty (pyserial-asyncio, :mod:`whexar.sensors.serial_link`),
 or ``emulator`` / ``emulator:NAME`` for the in-process board of
-:mod:`whexar.bus.board_emulator` on virtual time.
+:mod:`whexar.sensors.board_emulator` on virtual time.
 """
 
 from __future__ import annotations
@@ -47,7 +47,6 @@ from typing import Final
 import anyio
 from pydantic import Field
 
-from whexar.actors.actor import Actor, ActorParams, Output
 from whexar.actors.messages import (
     BodyTilt,
     LegLoads,
@@ -61,27 +60,18 @@ from whexar.actors.messages import (
     SensorLinkUp,
     SensorStats,
 )
-from whexar.bus.board_emulator import SensorBoardEmulator
-from whexar.bus.sensor_frame import Frame, FrameDecoder, Mode, Rejected
-from whexar.bus.serial_link import ByteLink, SerialLink
 from whexar.config import RobotConfig, load_config
 from whexar.errors import DeviceGoneError, UsageError
 from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+from whexar.runtime.actor import Actor, ActorParams, Output
+from whexar.runtime.devices import DEVICES
+from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
+from whexar.sensors.frame import Frame, FrameDecoder, Mode, Rejected
+from whexar.sensors.serial_link import ByteLink, SerialLink
 
-EMULATOR: Final = "emulator"
-"""The port name of the in-process board; ``emulator:NAME`` picks a registered one."""
-
-BOARD_EMULATORS: dict[str, SensorBoardEmulator] = {}
-"""In-process sensor boards by name, for ``port = "emulator:NAME"`` (tests, simulation).
-
-A board registered here outlives the reader (it is the hardware), so a
-restarted reader finds it as its predecessor left it.
-"""
-
-
-def register_board(name: str, board: SensorBoardEmulator) -> None:
-    """Make ``board`` the port ``emulator:name``."""
-    BOARD_EMULATORS[name] = board
+EMULATOR: Final = SENSOR_BOARD.scheme
+"""The port name of the in-process board; ``emulator:NAME`` opens the board registered as
+NAME (:data:`~whexar.sensors.board_emulator.SENSOR_BOARD`)."""
 
 
 class SensorReader(Actor):
@@ -134,20 +124,12 @@ class SensorReader(Actor):
             self._board()  # an unknown emulator name is a configuration error: fail now
 
     def _board(self) -> SensorBoardEmulator:
-        if self.port == EMULATOR and EMULATOR not in BOARD_EMULATORS:
+        if self.port == EMULATOR and (SENSOR_BOARD, EMULATOR) not in DEVICES:
             rate = self.cfg.sensor_board.frame_rate_hz
-            register_board(
-                EMULATOR, SensorBoardEmulator(frame_rate_hz=rate, baudrate=self.baudrate)
-            )
+            board = SensorBoardEmulator(frame_rate_hz=rate, baudrate=self.baudrate)
+            DEVICES.register(SENSOR_BOARD, EMULATOR, board)
         name = self.port.removeprefix(f"{EMULATOR}:")
-        try:
-            return BOARD_EMULATORS[name]
-        except KeyError:
-            known = ", ".join(sorted(BOARD_EMULATORS)) or "none"
-            raise UsageError(
-                f"port = {self.port!r}: no emulated sensor board registered as {name!r} "
-                f"(registered: {known}); use whexar.actors.sensors.register_board"
-            ) from None
+        return DEVICES.get(SENSOR_BOARD, name, setting=f"port = {self.port!r}")
 
     async def _open(self) -> ByteLink:
         if self.port == EMULATOR or self.port.startswith(f"{EMULATOR}:"):

@@ -34,19 +34,20 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, ClassVar, TypeVar
 
-from whexar.actors.bus import EMULATORS, BusScheduler, register_emulator
-from whexar.actors.clock import run as run_loop
+from whexar.actors.bus import BusScheduler
 from whexar.actors.messages import ServoStates
-from whexar.actors.runtime import Runtime
-from whexar.actors.wiring import build_graph
 from whexar.bench import Figure, Progress, Report
 from whexar.bus.control_table import block
-from whexar.bus.emulator import ServoChain, TimingModel
+from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain, TimingModel
 from whexar.bus.plan import PRESETS, ReadPlan
 from whexar.bus.protocol import sync_read_bytes, sync_write_bytes
 from whexar.bus.sdk import DxlBus, PortOwner
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES
+from whexar.runtime.clock import run as run_loop
+from whexar.runtime.devices import DEVICES
+from whexar.runtime.supervisor import Runtime
+from whexar.runtime.wiring import build_graph
 from whexar.testing import run_actors
 from whexar.testing.bus import bus_graph
 
@@ -110,11 +111,11 @@ def _rate(states: list[ServoStates], skip_s: float = 0.2) -> float:
 def virtual_rate(plan: str, cfg: RobotConfig, seconds: float = 3.0) -> float:
     """Cycles/s of ``plan`` on virtual time against a fresh in-process emulator."""
     chain = ServoChain.from_config(cfg, fast_sync_read=PRESETS[plan].fast_sync_read == "on")
-    register_emulator("bench", chain)
+    DEVICES.register(SERVO_CHAIN, "bench", chain)
     try:
         result = run_actors(_graph("emulator:bench", plan), duration=seconds)
     finally:
-        EMULATORS.pop("bench", None)
+        DEVICES.unregister(SERVO_CHAIN, "bench")
     return _rate(result.messages("state", of=ServoStates))
 
 
@@ -179,7 +180,7 @@ def cpu_per_cycle_ms(plan: str, cfg: RobotConfig, seconds: float = 2.0) -> float
             inside[0] += time.perf_counter() - start
 
     chain.transact = timed  # type: ignore[method-assign]
-    register_emulator("bench", chain)
+    DEVICES.register(SERVO_CHAIN, "bench", chain)
     TimedBusScheduler.busy[0] = 0.0
     TimedBusScheduler.cycles[0] = 0
     graph = _graph("emulator:bench", plan)
@@ -193,7 +194,7 @@ def cpu_per_cycle_ms(plan: str, cfg: RobotConfig, seconds: float = 2.0) -> float
     try:
         run_loop(main)
     finally:
-        EMULATORS.pop("bench", None)
+        DEVICES.unregister(SERVO_CHAIN, "bench")
     t = TimedBusScheduler
     return t.busy[0] / max(1, t.cycles[0]) * 1e3
 

@@ -28,11 +28,11 @@ from typing import Any
 import anyio
 from pydantic import BaseModel, ConfigDict
 
-from whexar.actors.clock import run as run_loop
-from whexar.actors.messages import Heartbeat
-from whexar.actors.runtime import Runtime
-from whexar.actors.wiring import Graph, build_graph
 from whexar.bench import Figure, Progress, Report, median_seconds
+from whexar.runtime.clock import run as run_loop
+from whexar.runtime.messages import Heartbeat
+from whexar.runtime.supervisor import Runtime
+from whexar.runtime.wiring import Graph, build_graph
 
 MESSAGES_TARGET_PER_S = 200_000.0
 HOP_TARGET_US = 20.0

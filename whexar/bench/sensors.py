@@ -1,7 +1,7 @@
 """``whexar bench sensors``: frame decoding speed and frame-to-message latency.
 
 * **Decoder** — 20,000 checked frames with varying values, fed to
-  :class:`~whexar.bus.sensor_frame.FrameDecoder` in 64-byte chunks (a USB
+  :class:`~whexar.sensors.frame.FrameDecoder` in 64-byte chunks (a USB
   full-speed packet); frames per second, median of 5 runs. The board sends at
   most 50 frames/s.
 * **Latency** — the real :class:`~whexar.actors.sensors.SensorReader` on real
@@ -23,12 +23,13 @@ import time
 import tty
 from collections.abc import Callable
 
-from whexar.actors.clock import run as run_loop
-from whexar.actors.messages import Message, SensorFrame
-from whexar.actors.runtime import Runtime
-from whexar.actors.wiring import build_graph
+from whexar.actors.messages import SensorFrame
 from whexar.bench import Figure, Progress, Report
-from whexar.bus.sensor_frame import FrameDecoder, encode_frame
+from whexar.runtime.clock import run as run_loop
+from whexar.runtime.messages import Message
+from whexar.runtime.supervisor import Runtime
+from whexar.runtime.wiring import build_graph
+from whexar.sensors.frame import FrameDecoder, encode_frame
 from whexar.testing.sensors import sensor_graph
 
 FRAMES_TARGET_PER_S = 20_000.0

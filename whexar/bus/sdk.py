@@ -43,10 +43,10 @@ import anyio.lowlevel
 import dynamixel_sdk as dxl
 from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
 
-from whexar.actors.clock import Clock
 from whexar.bus.control_table import Register
 from whexar.bus.protocol import ALERT, crc16
 from whexar.errors import DeviceGoneError
+from whexar.runtime.clock import Clock
 
 T = TypeVar("T")
 
@@ -247,7 +247,7 @@ class InlinePortOwner:
     """Runs jobs on the loop against an in-process emulated port, then sleeps their bus time.
 
     ``port`` must offer ``take_elapsed()`` (the bus time its transactions
-    cost); :class:`~whexar.bus.emulator.EmulatedPort` does.
+    cost); :class:`~whexar.bus.emulator.chain.EmulatedPort` does.
     """
 
     def __init__(self, port: Any, clock: Clock) -> None:

@@ -43,9 +43,9 @@ from typing import Final
 
 import numpy as np
 
-from whexar._checks import non_negative, positive, real
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
+from whexar.runtime.checks import non_negative, positive, real
 
 OSCILLATORS: Final = ("hopf", "van_der_pol", "rayleigh", "stick_slip")
 """Oscillator names, in the order of Grzelczyk et al., 8.4.1–8.4.2."""

@@ -21,11 +21,11 @@ from typing import Final, Literal, get_args
 
 import numpy as np
 
-from whexar._checks import non_negative, positive, real
 from whexar._typing import ArrayLike, BoolArray, FloatArray
 from whexar.errors import UsageError
 from whexar.kinematics.cpg import CpgOrbit
 from whexar.kinematics.gait import PHASE_TOLERANCE
+from whexar.runtime.checks import non_negative, positive, real
 
 SwingShape = Literal["parabola", "half_sine"]
 """Analytic swing shapes (Diosdado 2014, 3.3–3.4)."""

@@ -28,11 +28,11 @@ from typing import Final
 
 import numpy as np
 
-from whexar._checks import positive, real
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
 from whexar.kinematics.geometry import SIDE_SIGN, default_geometry
 from whexar.robot import LEG_NAMES, N_LEGS
+from whexar.runtime.checks import positive, real
 
 # Below this ground speed (m/s) a wheel is taken to sit at the centre of rotation: its heading
 # is then undefined and we keep it neutral instead of amplifying rounding noise through atan2.

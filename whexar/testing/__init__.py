@@ -23,12 +23,10 @@ from whexar.testing.harness import (
     Scenario,
     run_actors,
 )
-from whexar.testing.i2c import FakeLsm9ds1, FakeSMBus, imu_graph
+from whexar.testing.imu import imu_graph
 
 __all__ = [
     "HARNESS",
-    "FakeLsm9ds1",
-    "FakeSMBus",
     "Harness",
     "InjectedFailure",
     "LogEntry",

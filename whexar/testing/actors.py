@@ -15,9 +15,9 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from whexar.actors.actor import Actor, ActorParams, Input, Output
-from whexar.actors.messages import Heartbeat, Message
-from whexar.config import NonNegative, Positive
+from whexar.runtime.actor import Actor, ActorParams, Input, Output
+from whexar.runtime.messages import Heartbeat, Message
+from whexar.runtime.schema import NonNegative, Positive
 
 
 class InjectedFailure(RuntimeError):  # noqa: N818 - a failure on purpose, not an error of ours

@@ -16,9 +16,9 @@ from typing import Any
 
 from pydantic import Field
 
-from whexar.actors.actor import Actor, ActorParams, Input, Output
 from whexar.actors.messages import JointGoal, JointGoals, ServoStates
 from whexar.robot import JOINT_NAMES, N_LEGS
+from whexar.runtime.actor import Actor, ActorParams, Input, Output
 
 _WHEEL = JOINT_NAMES.index("wheel")
 

@@ -3,8 +3,8 @@
 Theory of operation
 -------------------
 :func:`run_actors` builds the graph, runs it under a
-:class:`~whexar.actors.runtime.Runtime` on a
-:class:`~whexar.actors.clock.VirtualEventLoop`, and records every message
+:class:`~whexar.runtime.supervisor.Runtime` on a
+:class:`~whexar.runtime.clock.VirtualEventLoop`, and records every message
 published on every channel — runtime events included — in a
 :class:`MessageLog`, in publish order. A *scenario* coroutine may run beside
 the graph once every actor is ready, with a :class:`Harness` to feed
@@ -25,12 +25,12 @@ from typing import Any, TypeVar, overload
 import anyio
 from anyio.abc import TaskStatus
 
-from whexar.actors.channels import ChannelStats
-from whexar.actors.clock import run as run_loop
-from whexar.actors.messages import Event, Message
-from whexar.actors.runtime import Runtime
-from whexar.actors.wiring import EVENTS_CHANNEL, Graph, GraphSpec, build_graph
 from whexar.errors import UsageError
+from whexar.runtime.channels import ChannelStats
+from whexar.runtime.clock import run as run_loop
+from whexar.runtime.messages import Event, Message
+from whexar.runtime.supervisor import Runtime
+from whexar.runtime.wiring import EVENTS_CHANNEL, Graph, GraphSpec, build_graph
 
 M = TypeVar("M", bound=Message)
 

@@ -11,7 +11,7 @@ One root task group owns everything. :meth:`Runtime.run`
 3. waits for a stop request: SIGINT/SIGTERM (when ``handle_signals``), the
    end of ``duration``, :meth:`Runtime.request_stop`, or an escalation;
 4. after an escalation, runs the **safe stop** first: the runtime's hooks,
-   then every live actor's :meth:`~whexar.actors.actor.Actor.safe_stop`,
+   then every live actor's :meth:`~whexar.runtime.actor.Actor.safe_stop`,
    newest first, each bounded by the stop timeout;
 5. stops the actors in reverse start order, cancelling each and giving it
    ``stop_timeout_s`` to finish its shielded cleanup before moving on.
@@ -21,7 +21,7 @@ Supervision: an actor whose ``run()`` raises (or does not report ready in
 starts, unless that failure makes more than ``max_restarts`` within
 ``window_s``. Then the actor is *escalated*: it stays down, the runtime stops
 safely and :meth:`run` returns :data:`EXIT_ESCALATED`. Every step is an
-:class:`~whexar.actors.messages.Event` on the ``events`` channel.
+:class:`~whexar.runtime.messages.Event` on the ``events`` channel.
 """
 
 from __future__ import annotations
@@ -37,10 +37,10 @@ import anyio
 from anyio import TASK_STATUS_IGNORED, CancelScope
 from anyio.abc import TaskStatus
 
-from whexar.actors.actor import Actor, ActorContext
-from whexar.actors.channels import Channel, ChannelStats, Inbox, Observer, Outbox
-from whexar.actors.clock import Clock
-from whexar.actors.messages import (
+from whexar.runtime.actor import Actor, ActorContext
+from whexar.runtime.channels import Channel, ChannelStats, Inbox, Observer, Outbox
+from whexar.runtime.clock import Clock
+from whexar.runtime.messages import (
     ActorEscalated,
     ActorFailed,
     ActorReady,
@@ -51,7 +51,7 @@ from whexar.actors.messages import (
     SafeStop,
     StopRequested,
 )
-from whexar.actors.wiring import EVENTS_CHANNEL, RUNTIME, ActorNode, Graph
+from whexar.runtime.wiring import EVENTS_CHANNEL, RUNTIME, ActorNode, Graph
 
 EXIT_CLEAN: Final = 0
 """Process exit status after a clean stop."""
@@ -91,7 +91,7 @@ def describe(exc: BaseException) -> str:
 
 
 class Runtime:
-    """Runs one :class:`~whexar.actors.wiring.Graph`; make a new one for each run."""
+    """Runs one :class:`~whexar.runtime.wiring.Graph`; make a new one for each run."""
 
     def __init__(
         self,

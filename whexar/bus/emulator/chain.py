@@ -72,6 +72,7 @@ from whexar.bus.protocol import (
 )
 from whexar.errors import UsageError
 from whexar.robot import JOINT_NAMES
+from whexar.runtime.devices import DeviceKind
 
 if TYPE_CHECKING:
     from whexar.config import RobotConfig
@@ -1123,6 +1124,11 @@ class ServoChain:
         # silent one leaves its part out, so the host sees a broken packet.
         parts = fast_status_parts(entries)
         return [(s, part) for s, part in zip(answering, parts, strict=True) if s is not None], True
+
+
+SERVO_CHAIN: Final = DeviceKind[ServoChain]("emulated servo chain", "emulator")
+"""Servo chains in :data:`~whexar.runtime.devices.DEVICES`: ``port = "emulator:NAME"`` of
+:class:`~whexar.actors.bus.BusScheduler` opens the one registered as NAME."""
 
 
 # --------------------------------------------------------------------------- port

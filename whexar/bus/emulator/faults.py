@@ -19,7 +19,7 @@ A :class:`FaultPlan` is a list of :class:`Fault` entries, read from TOML
     on = "sync_write"        # …after the 10th Sync Write that includes servo 4
     count = 10
 
-A :class:`FaultInjector` attaches to a :class:`~whexar.bus.emulator.ServoChain`
+A :class:`FaultInjector` attaches to a :class:`~whexar.bus.emulator.chain.ServoChain`
 as one of its hooks. The chain calls the hook before it handles each request,
 with the emulator time ``t`` and the decoded instruction packets; the injector
 then starts the faults whose trigger has come and ends the faults whose
@@ -88,11 +88,12 @@ from typing import TYPE_CHECKING, Annotated, Any, Final, Literal
 from pydantic import Field, ValidationError
 
 from whexar.bus.control_table import HardwareError
-from whexar.config import SERVO_ID_RANGE, CheckedSection, Section, problem_from_error, read_toml
+from whexar.bus.protocol import MAX_ID
 from whexar.errors import MISSING, ConfigError, Problem
+from whexar.runtime.schema import CheckedSection, Section, problem_from_error, read_toml
 
 if TYPE_CHECKING:
-    from whexar.bus.emulator import ServoChain
+    from whexar.bus.emulator.chain import ServoChain
     from whexar.bus.protocol import Packet
 
 __all__ = [
@@ -163,7 +164,7 @@ _ONLY_FOR: Final[Mapping[str, frozenset[str]]] = {
     "volts": frozenset({"voltage_sag"}),
 }
 
-ServoId = Annotated[int, Field(ge=SERVO_ID_RANGE[0], le=SERVO_ID_RANGE[1])]
+ServoId = Annotated[int, Field(ge=0, le=MAX_ID)]
 
 
 class Fault(CheckedSection):
@@ -392,7 +393,7 @@ LogSink = Callable[[float, str], None]
 
 
 class FaultInjector:
-    """Runs a :class:`FaultPlan` on a :class:`~whexar.bus.emulator.ServoChain`.
+    """Runs a :class:`FaultPlan` on a :class:`~whexar.bus.emulator.chain.ServoChain`.
 
     ``FaultInjector(plan).attach(chain)`` registers the injector as one of
     the chain's hooks and seeds ``chain.faults.rng`` with ``plan.seed``.
@@ -438,7 +439,7 @@ class FaultInjector:
         """Start and end faults at emulator time ``t`` without a request.
 
         The chain runs the hook on every request; a driver that stops sending
-        requests (an :class:`~whexar.bus.emulator.EmulatedPort` raises on every
+        requests (an :class:`~whexar.bus.emulator.chain.EmulatedPort` raises on every
         access while unplugged) calls this to let time-bound faults end.
         """
         if self._chain is None:

@@ -13,7 +13,7 @@ Theory of operation
   to retry) belongs to the caller, :class:`whexar.actors.imu.ImuReader`.
 * **Injected bus.** :class:`Lsm9ds1` drives any object with smbus2's three
   byte and block calls (:class:`SMBusLike`): ``smbus2.SMBus`` on the robot,
-  :class:`whexar.testing.i2c.FakeSMBus` in tests and simulation.
+  :class:`whexar.sensors.imu_emulator.FakeSMBus` in tests and simulation.
 * **Configure = write a known state, then read it back.** :func:`settings`
   computes, purely, the value of every register that shapes the output
   (rates, full scales, filters, axis signs, FIFO off), so a chip left in any
@@ -172,6 +172,12 @@ class SMBusLike(Protocol):
     def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None: ...
 
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]: ...
+
+
+class I2CBus(SMBusLike, Protocol):
+    """An opened I²C adapter: the driver's calls, and ``close``."""
+
+    def close(self) -> None: ...
 
 
 # --------------------------------------------------------------------------- pure helpers
@@ -423,6 +429,7 @@ __all__ = [
     "WHO_AM_I",
     "WHO_AM_I_VALUE",
     "XLDA",
+    "I2CBus",
     "Lsm9ds1",
     "Reading",
     "SMBusLike",

@@ -25,7 +25,7 @@ The whole graph is configuration, in one place (copper-rs's
     capacity = 1
 
 The built-in channel ``events`` carries the runtime's
-:class:`~whexar.actors.messages.Event` values; any actor may subscribe to it.
+:class:`~whexar.runtime.messages.Event` values; any actor may subscribe to it.
 
 :func:`build_graph` checks the wiring before anything runs and raises
 :class:`WiringError` listing every problem, each naming the actor, port and
@@ -45,10 +45,11 @@ from typing import Annotated, Any
 
 from pydantic import Field, ValidationError
 
-from whexar.actors.actor import Actor, ActorParams, Input, Output
-from whexar.actors.channels import Policy, capacity_or_default
-from whexar.actors.messages import MESSAGE_TYPES, Event, Message
-from whexar.config import (
+from whexar.runtime.actor import Actor, ActorParams, Input, Output
+from whexar.runtime.channels import Policy, capacity_or_default
+from whexar.runtime.errors import MISSING, ConfigError, Problem
+from whexar.runtime.messages import MESSAGE_TYPES, Event, Message
+from whexar.runtime.schema import (
     NonNegative,
     Positive,
     Section,
@@ -56,7 +57,6 @@ from whexar.config import (
     problem_from_error,
     read_toml,
 )
-from whexar.errors import MISSING, ConfigError, Problem
 
 EVENTS_CHANNEL = "events"
 """The built-in channel of runtime events; its publisher is the runtime."""
@@ -155,7 +155,7 @@ class ChannelNode:
 
 @dataclass(frozen=True)
 class Graph:
-    """A checked actor graph, ready for :class:`~whexar.actors.runtime.Runtime`."""
+    """A checked actor graph, ready for :class:`~whexar.runtime.supervisor.Runtime`."""
 
     settings: RuntimeSettings
     actors: tuple[ActorNode, ...]

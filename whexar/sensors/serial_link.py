@@ -12,7 +12,7 @@ iteration; there is no polling and no thread. A vanished device (USB
 unplugged, a pty whose other end closed) ends the connection, and
 ``receive`` raises :class:`~whexar.errors.DeviceGoneError` once the bytes
 that did arrive are consumed. The in-process board emulator
-(:mod:`whexar.bus.board_emulator`) provides the same protocol on virtual time.
+(:mod:`whexar.sensors.board_emulator`) provides the same protocol on virtual time.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ The real board (``firmware/``) samples every analog input at 50 Hz, keeps a
 5-sample trimmed mean per input and sends a checked frame every
 1/frame-rate seconds (``firmware/PROTOCOL.md``). :class:`SensorBoardEmulator`
 does the same arithmetic, frame for frame, and hands the bytes to the reader
-through :class:`EmulatedBoardLink`, a :class:`~whexar.bus.serial_link.ByteLink`
+through :class:`EmulatedBoardLink`, a :class:`~whexar.sensors.serial_link.ByteLink`
 whose frames arrive when their last byte would have crossed the wire at the
 board's baud rate. So the sensor reader runs unchanged on virtual time, in
 tests and in the simulator; the firmware itself runs under simavr in the
@@ -29,10 +29,11 @@ from typing import Final
 
 import anyio
 
-from whexar.actors.clock import Clock
-from whexar.bus.sensor_frame import ACC_KEYS, FSR_KEYS, IR_KEYS, encode_frame
 from whexar.errors import DeviceGoneError, UsageError
 from whexar.kinematics.sensing import ADC_MAX
+from whexar.runtime.clock import Clock
+from whexar.runtime.devices import DeviceKind
+from whexar.sensors.frame import ACC_KEYS, FSR_KEYS, IR_KEYS, encode_frame
 
 SAMPLE_RATE_HZ: Final = 50.0
 """ADC sampling of every input (Žák 2023, 6.1.2, 6.1.5)."""
@@ -197,8 +198,13 @@ class SensorBoardEmulator:
         return self._link
 
 
+SENSOR_BOARD: Final = DeviceKind[SensorBoardEmulator]("emulated sensor board", "emulator")
+"""Emulated boards in :data:`~whexar.runtime.devices.DEVICES`: ``port = "emulator:NAME"`` of
+:class:`~whexar.actors.sensors.SensorReader` opens the one registered as NAME."""
+
+
 class EmulatedBoardLink:
-    """A :class:`~whexar.bus.serial_link.ByteLink` to an emulated board, on the runtime clock."""
+    """A :class:`~whexar.sensors.serial_link.ByteLink` to an emulated board (runtime clock)."""
 
     def __init__(self, board: SensorBoardEmulator, clock: Clock) -> None:
         self.board = board
@@ -315,6 +321,7 @@ __all__ = [
     "CHANNELS",
     "FILTER_WINDOW",
     "SAMPLE_RATE_HZ",
+    "SENSOR_BOARD",
     "EmulatedBoardLink",
     "SensorBoardEmulator",
     "TrimmedMean",

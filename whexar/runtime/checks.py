@@ -1,6 +1,6 @@
-"""Scalar argument checks shared by the pure-math modules.
+"""Scalar argument checks, shared by the runtime (the ticker) and the pure-math modules.
 
-Each raises :class:`~whexar.errors.UsageError` naming the argument, the value
+Each raises :class:`~whexar.runtime.errors.UsageError` naming the argument, the value
 given and what is allowed, so a bad number never becomes a NaN downstream.
 """
 
@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from whexar.errors import UsageError
+from whexar.runtime.errors import UsageError
 
 
 def real(name: str, value: object) -> float:

@@ -5,7 +5,7 @@ Theory of operation
 Cycle ``k`` is due at ``t0 + k·period``: deadlines are computed from the
 start, never by adding the period to the last wake-up, so the ticker cannot
 drift however long it runs. A cycle that ends after the next deadline has
-*overrun*: the ticker emits a :class:`~whexar.actors.messages.TickOverrun`
+*overrun*: the ticker emits a :class:`~whexar.runtime.messages.TickOverrun`
 event and resumes at the next deadline still ahead, skipping the missed
 ones (a late control cycle is useless; a burst of catch-up cycles is
 harmful). A cycle that ends exactly on the next deadline is on time.
@@ -17,9 +17,9 @@ import math
 from collections.abc import Callable
 from typing import NamedTuple
 
-from whexar._checks import positive
-from whexar.actors.clock import Clock
-from whexar.actors.messages import Event, TickOverrun
+from whexar.runtime.checks import positive
+from whexar.runtime.clock import Clock
+from whexar.runtime.messages import Event, TickOverrun
 
 
 class Tick(NamedTuple):
@@ -32,7 +32,7 @@ class Tick(NamedTuple):
 class Ticker:
     """``async for tick in Ticker(...)`` runs one body per period, on a fixed grid.
 
-    Made by :meth:`whexar.actors.actor.Actor.ticker`, which fills in the
+    Made by :meth:`whexar.runtime.actor.Actor.ticker`, which fills in the
     actor's clock and event stream. The first tick is due at ``start``
     (default: now).
     """

@@ -3,7 +3,7 @@
 Theory of operation
 -------------------
 :class:`PtyEmulator` opens a pty pair and serves a
-:class:`~whexar.bus.emulator.ServoChain` on its master side. Any program that
+:class:`~whexar.bus.emulator.chain.ServoChain` on its master side. Any program that
 opens :attr:`PtyEmulator.path` as a serial port — dynamixel-sdk's
 ``PortHandler``, pyserial, whexar's own bus owner — sees 42 servos on a
 Protocol 2.0 bus. pyserial accepts 1 Mbps (any rate) on a pty; a pty has no
@@ -27,7 +27,7 @@ wire time both ways, return delays, turnaround), and ``bus_free_at`` becomes
 wire time, so a read right behind it waits. With ``realtime=False`` every
 reply is written at once.
 
-Only :mod:`whexar.actors.clock` reads the wall clock: ``monotonic()`` for
+Only :mod:`whexar.runtime.clock` reads the wall clock: ``monotonic()`` for
 arrival times and ``wait_until()`` to hold a reply until its time.
 """
 
@@ -44,10 +44,10 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING, Final
 
-from whexar.actors.clock import monotonic, wait_until
+from whexar.runtime.clock import monotonic, wait_until
 
 if TYPE_CHECKING:
-    from whexar.bus.emulator import ServoChain, Transaction
+    from whexar.bus.emulator.chain import ServoChain, Transaction
 
 __all__ = ["PACKET_GAP_S", "PtyEmulator", "PtyStats"]
 

@@ -21,7 +21,7 @@ buffer has room; only a full ``backpressure`` buffer suspends the publisher.
 
 Why ``asyncio.Queue`` buffers and not anyio memory object streams
 -----------------------------------------------------------------
-The runtime is anyio on the asyncio backend (see :mod:`whexar.actors.clock`),
+The runtime is anyio on the asyncio backend (see :mod:`whexar.runtime.clock`),
 and cancellation reaches a task waiting on an ``asyncio.Queue`` like any
 other await. The buffer is what a hop costs, and it was measured here:
 a token passed around a ring of ten tasks costs about 28 µs per hop through
@@ -43,7 +43,7 @@ from typing import Generic, TypeVar
 import anyio
 from anyio import WouldBlock
 
-from whexar.actors.messages import Message
+from whexar.runtime.messages import Message
 
 M = TypeVar("M", bound=Message)
 

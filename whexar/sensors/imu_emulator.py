@@ -9,7 +9,7 @@ i2c-dev reports when a device does not acknowledge (on the Raspberry Pi).
 
 :class:`FakeLsm9ds1` is the chip as the host sees it: a 256-byte register
 file with the datasheet's reset values, written and read by register
-address, the same map as :mod:`whexar.bus.lsm9ds1`. Its motion is two
+address, the same map as :mod:`whexar.sensors.lsm9ds1`. Its motion is two
 settable vectors, :attr:`~FakeLsm9ds1.accel_g` and
 :attr:`~FakeLsm9ds1.gyro_dps`; the output registers carry them quantised as
 the chip does, by the full scale selected in CTRL_REG6_XL and CTRL_REG1_G,
@@ -41,16 +41,21 @@ configuration lost), :meth:`~FakeLsm9ds1.freeze` / :meth:`~FakeLsm9ds1.thaw`
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from typing import Any, Final, Protocol, TypeVar
+from collections.abc import Sequence
+from typing import Final, Protocol, TypeVar
 
-from whexar.bus import lsm9ds1 as chip
-from whexar.bus.lsm9ds1 import Vector
+from whexar.runtime.devices import DeviceKind
+from whexar.sensors import lsm9ds1 as chip
+from whexar.sensors.lsm9ds1 import I2CBus, Vector
 
 EREMOTEIO: Final = 121
 """Linux's errno when an I²C device does not acknowledge ("Remote I/O error")."""
 BLOCK_MAX: Final = 32
 """Longest SMBus block transfer (smbus2's ``I2C_SMBUS_BLOCK_MAX``)."""
+
+I2C_BUS: Final = DeviceKind[I2CBus]("fake I²C bus", "fake")
+"""Fake I²C buses in :data:`~whexar.runtime.devices.DEVICES`: ``device = "fake:NAME"``
+of :class:`~whexar.actors.imu.ImuReader` opens the one registered as NAME."""
 
 _WRITABLE: Final = frozenset(
     [*range(0x04, 0x0E), *range(0x10, 0x14), *range(0x1E, 0x25), 0x2E, *range(0x30, 0x38)]
@@ -299,41 +304,12 @@ def quantise(value: float, per_lsb: float) -> int:
     return max(-32768, min(32767, round(value / per_lsb)))
 
 
-def imu_graph(
-    device: str = "fake",
-    params: Mapping[str, Any] | None = None,
-    *,
-    outputs: Sequence[str] = ("tilt", "samples"),
-    max_restarts: int | None = None,
-) -> dict[str, Any]:
-    """A wiring document: an ``ImuReader`` on ``device`` with ``params``, outputs on queues.
-
-    ``device`` is ``"fake"`` (a fresh fake chip) or ``"fake:NAME"`` (one
-    registered with :func:`whexar.actors.imu.register_fake`).
-    """
-    channels = {"tilt": "BodyTilt", "samples": "ImuSample"}
-    doc: dict[str, Any] = {
-        "actors": [
-            {
-                "name": "imu",
-                "class": "whexar.actors.imu:ImuReader",
-                "params": {"device": device, **(params or {})},
-                "outputs": {name: name for name in outputs},
-            }
-        ],
-        "channels": {name: {"message": channels[name], "policy": "queue"} for name in outputs},
-    }
-    if max_restarts is not None:
-        doc["runtime"] = {"restart": {"max_restarts": max_restarts}}
-    return doc
-
-
 __all__ = [
     "BLOCK_MAX",
     "EREMOTEIO",
+    "I2C_BUS",
     "FakeI2CDevice",
     "FakeLsm9ds1",
     "FakeSMBus",
-    "imu_graph",
     "quantise",
 ]

@@ -31,8 +31,8 @@ Ports are class attributes::
                 await self.out.send(beat)
 
 The wiring configuration connects each port to a channel by name; reading
-``self.inp`` on an instance gives its :class:`~whexar.actors.channels.Inbox`,
-``self.out`` its :class:`~whexar.actors.channels.Outbox`.
+``self.inp`` on an instance gives its :class:`~whexar.runtime.channels.Inbox`,
+``self.out`` its :class:`~whexar.runtime.channels.Outbox`.
 """
 
 from __future__ import annotations
@@ -45,10 +45,10 @@ from typing import Any, ClassVar, Generic, TypeVar, overload
 from anyio import CancelScope
 from pydantic import BaseModel, ConfigDict
 
-from whexar.actors.channels import Inbox, Outbox
-from whexar.actors.clock import Clock
-from whexar.actors.messages import Event, Message
-from whexar.actors.ticker import Ticker
+from whexar.runtime.channels import Inbox, Outbox
+from whexar.runtime.clock import Clock
+from whexar.runtime.messages import Event, Message
+from whexar.runtime.ticker import Ticker
 
 M = TypeVar("M", bound=Message)
 

@@ -1,0 +1,13 @@
+"""The sensor links: the ATmega2560 sensor board's serial line and the LSM9DS1 IMU.
+
+* :mod:`~whexar.sensors.frame` — the board's frames (``firmware/PROTOCOL.md``), a sans-IO codec;
+* :mod:`~whexar.sensors.serial_link` — the board's serial port over pyserial-asyncio;
+* :mod:`~whexar.sensors.board_emulator` — the board's firmware in Python, on virtual time;
+* :mod:`~whexar.sensors.lsm9ds1` — the LSM9DS1 IMU driver over an SMBus;
+* :mod:`~whexar.sensors.imu_emulator` — a fake I²C bus and a register-level LSM9DS1.
+
+May import: :mod:`whexar.kinematics` (the ADC conversions of eq. 5.5–5.7),
+:mod:`whexar.robot`, :mod:`whexar.errors` and :mod:`whexar.runtime` — never the
+configuration (callers pass values) nor the servo bus. The actors that own
+these links are :mod:`whexar.actors.sensors` and :mod:`whexar.actors.imu`.
+"""
