@@ -29,4 +29,4 @@ def test_sign_checks_name_the_unit() -> None:
 def test_wheels_refuse_a_string_speed() -> None:
     contacts = np.zeros((6, 2))
     with pytest.raises(UsageError, match="speed = 'fast'"):
-        wheel_straight(contacts, "fast")  # type: ignore[arg-type]
+        wheel_straight(contacts, "fast", wheel_radius=0.033)  # type: ignore[arg-type]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from whexar.cli import main
-from whexar.config import RobotConfig
+from whexar.config import RobotConfig, default_geometry
 from whexar.errors import UsageError
 from whexar.kinematics.body import leg_to_body, stance_feet
 from whexar.kinematics.gait import GAIT_RANKING, GAITS
@@ -14,7 +14,7 @@ from whexar.kinematics.stability import gait_stability_margin, static_stability_
 from whexar.kinematics.trajectory import FootTrajectory
 from whexar.robot import LEG_NAMES
 
-FEET = leg_to_body(stance_feet(RobotConfig().stance("default")))
+FEET = leg_to_body(stance_feet(RobotConfig().stance("default")), default_geometry())
 
 
 @pytest.mark.parametrize("step_length", [0.06, 0.10, 0.14])

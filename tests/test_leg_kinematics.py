@@ -9,8 +9,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from whexar.cli import main
+from whexar.config import default_geometry
 from whexar.errors import JointLimitError, KinematicsError, UnreachableError, UsageError
-from whexar.kinematics.geometry import default_geometry
 from whexar.kinematics.leg import CHAIN_POINTS, dh_transforms, fk, fk_chain, ik
 
 # Table 6.5: goal coordinates [mm] and coxa, femur, tibia, tarsus [deg].
@@ -27,7 +27,7 @@ LOWER, UPPER = G.limits[:, 0], G.limits[:, 1]
 
 @pytest.mark.parametrize(("goal", "expected"), TABLE_6_5)
 def test_ik_reproduces_table_6_5(goal: tuple[int, ...], expected: tuple[float, ...]) -> None:
-    solution = ik(np.array(goal) / 1000)
+    solution = ik(np.array(goal) / 1000, G)
     got = solution.degrees[[0, 2, 3, 4]]
     # The table rounds to 0.01°; its tarsus column was computed from rounded
     # femur and tibia, so allow the 0.05°.
@@ -39,19 +39,19 @@ def test_fk_of_table_angles_gives_table_coordinates() -> None:
     angles = np.radians([[c, 0.0, f, ti, ta] for _, (c, f, ti, ta) in TABLE_6_5])
     goals = np.array([goal for goal, _ in TABLE_6_5], dtype=float)
     # Angles printed to 0.01° move a 250 mm leg by up to ~0.05 mm.
-    np.testing.assert_allclose(fk(angles) * 1000, goals, atol=0.1)
+    np.testing.assert_allclose(fk(angles, G) * 1000, goals, atol=0.1)
 
 
 def test_all_rows_in_one_vectorised_call() -> None:
     goals = np.array([goal for goal, _ in TABLE_6_5]) / 1000
-    solution = ik(goals)
-    np.testing.assert_allclose(fk(solution.angles), goals, atol=1e-9)
+    solution = ik(goals, G)
+    np.testing.assert_allclose(fk(solution.angles, G), goals, atol=1e-9)
     assert solution.angles.shape == (5, 5)
 
 
 def test_dh_transform_is_eq_4_4() -> None:
     q = np.array([0.3, -0.2, 0.5, -1.1, 0.4])
-    links = dh_transforms(q)
+    links = dh_transforms(q, G)
     for k in range(5):
         theta = G.theta_sign[k] * q[k] + G.theta_offset[k]
         ct, st_, ca, sa = (
@@ -70,8 +70,8 @@ def test_dh_transform_is_eq_4_4() -> None:
 
 
 def test_chain_reaches_the_wheel_contact_below_a_vertical_tarsus() -> None:
-    solution = ik([0.19, 0.12, 0.0])
-    chain = fk_chain(solution.angles)
+    solution = ik([0.19, 0.12, 0.0], G)
+    chain = fk_chain(solution.angles, G)
     tarsus = chain[CHAIN_POINTS.index("tarsus")]
     contact = chain[CHAIN_POINTS.index("contact")]
     # 95 + 42 + 33 mm straight down (Table 5.2).
@@ -84,11 +84,11 @@ def test_chain_reaches_the_wheel_contact_below_a_vertical_tarsus() -> None:
 def test_contact_target_and_pitch() -> None:
     p = np.array([[0.2, 0.30, 0.05], [0.17, 0.25, -0.08]])
     for pitch in (0.0, 0.25, -0.4):
-        sol = ik(p, pitch=pitch, target="contact")
-        np.testing.assert_allclose(fk(sol.angles, point="contact"), p, atol=1e-12)
+        sol = ik(p, G, pitch=pitch, target="contact")
+        np.testing.assert_allclose(fk(sol.angles, G, point="contact"), p, atol=1e-12)
         np.testing.assert_allclose(sol.angles[:, 1], pitch)
         # The last segment stays parallel to the (pitched) leg plane's vertical.
-        chain = fk_chain(sol.angles)
+        chain = fk_chain(sol.angles, G)
         down = chain[:, -1] - chain[:, 3]
         expected = np.array([0.0, math.cos(pitch), math.sin(pitch)])
         rotated = down / np.linalg.norm(down, axis=-1, keepdims=True)
@@ -118,11 +118,11 @@ def _joint_sample(rng: np.random.Generator, n: int) -> np.ndarray:
 def test_fk_ik_round_trip_over_the_workspace() -> None:
     rng = np.random.default_rng(2024)
     q = _joint_sample(rng, 20_000)
-    p = fk(q)
-    sol = ik(p, pitch=q[:, 1], clamp=True)
+    p = fk(q, G)
+    sol = ik(p, G, pitch=q[:, 1], clamp=True)
     met = ~sol.clamped
     assert met.mean() > 0.5  # most samples lie inside every limit
-    err = np.linalg.norm(fk(sol.angles[met]) - p[met], axis=-1)
+    err = np.linalg.norm(fk(sol.angles[met], G) - p[met], axis=-1)
     assert err.max() < 1e-6  # 1 µm
     assert sol.reachable.all()  # every FK output is in the workspace
 
@@ -138,12 +138,12 @@ def test_fk_of_ik_is_identity(coxa: float, pitch: float, femur: float, tibia: fl
     tarsus = -math.pi / 2 - femur - tibia
     assume(LOWER[4] <= tarsus <= UPPER[4])
     q = np.array([coxa, pitch, femur, tibia, tarsus])
-    p = fk(q)
+    p = fk(q, G)
     # The IK picks the branch with the tarsus joint outward of the coxa axis.
     rho = G.trochanter_offset + G.femur * math.cos(femur) + G.tibia * math.cos(femur + tibia)
     assume(rho > 1e-3)
-    sol = ik(p, pitch=pitch)
-    assert np.linalg.norm(fk(sol.angles) - p) < 1e-6
+    sol = ik(p, G, pitch=pitch)
+    assert np.linalg.norm(fk(sol.angles, G) - p) < 1e-6
     np.testing.assert_allclose(sol.angles, q, atol=1e-6)
 
 
@@ -159,13 +159,13 @@ def test_no_ik_result_leaves_the_joint_limits(
     x: float, y: float, z: float, pitch: float, target: str
 ) -> None:
     p = np.array([x, y, z])
-    clamped = ik(p, pitch=pitch, target=target, clamp=True)  # type: ignore[arg-type]
+    clamped = ik(p, G, pitch=pitch, target=target, clamp=True)  # type: ignore[arg-type]
     assert np.all(clamped.angles >= LOWER)
     assert np.all(clamped.angles <= UPPER)
     if not clamped.clamped:
-        assert np.linalg.norm(fk(clamped.angles, point=target) - p) < 1e-9  # type: ignore[arg-type]
+        assert np.linalg.norm(fk(clamped.angles, G, point=target) - p) < 1e-9  # type: ignore[arg-type]
     try:
-        strict = ik(p, pitch=pitch, target=target)  # type: ignore[arg-type]
+        strict = ik(p, G, pitch=pitch, target=target)  # type: ignore[arg-type]
     except KinematicsError:
         assert clamped.clamped
     else:
@@ -176,15 +176,15 @@ def test_no_ik_result_leaves_the_joint_limits(
 
 def test_unreachable_and_limit_errors_name_the_target() -> None:
     with pytest.raises(UnreachableError, match=r"\(400\.0, 0\.0, 0\.0\) mm is out of reach"):
-        ik([0.4, 0.0, 0.0])
+        ik([0.4, 0.0, 0.0], G)
     with pytest.raises(JointLimitError, match=r"femur = 130\.74°, outside its limits"):
-        ik([0.05, -0.2, 0.0])
+        ik([0.05, -0.2, 0.0], G)
     with pytest.raises(UnreachableError, match=r"target \[1\].*\(1 more"):
-        ik([[0.19, 0.12, 0.0], [0.5, 0, 0], [0.6, 0, 0]])
+        ik([[0.19, 0.12, 0.0], [0.5, 0, 0], [0.6, 0, 0]], G)
 
 
 def test_clamped_result_says_so() -> None:
-    sol = ik([[0.19, 0.12, 0.0], [0.5, 0.0, 0.0], [0.05, -0.2, 0.0]], clamp=True)
+    sol = ik([[0.19, 0.12, 0.0], [0.5, 0.0, 0.0], [0.05, -0.2, 0.0]], G, clamp=True)
     assert sol.clamped.tolist() == [False, True, True]
     assert sol.reachable.tolist() == [True, False, True]
     assert sol.any_clamped
@@ -201,18 +201,18 @@ def test_clamped_result_says_so() -> None:
 )
 def test_bad_points_are_named(points: object, message: str) -> None:
     with pytest.raises(UsageError, match=message):
-        ik(points)  # type: ignore[arg-type]
+        ik(points, G)  # type: ignore[arg-type]
 
 
 def test_bad_options_are_named() -> None:
     with pytest.raises(UsageError, match="pitch"):
-        ik([0.19, 0.12, 0.0], pitch=math.pi / 2)
+        ik([0.19, 0.12, 0.0], G, pitch=math.pi / 2)
     with pytest.raises(UsageError, match="'heel'"):
-        ik([0.19, 0.12, 0.0], target="heel")  # type: ignore[arg-type]
+        ik([0.19, 0.12, 0.0], G, target="heel")  # type: ignore[arg-type]
     with pytest.raises(UsageError, match=r"shape \(4,\)"):
-        fk([0.0, 0.0, 0.0, 0.0])
+        fk([0.0, 0.0, 0.0, 0.0], G)
     with pytest.raises(UsageError, match="femur = nan"):
-        fk([0.0, 0.0, math.nan, 0.0, 0.0])
+        fk([0.0, 0.0, math.nan, 0.0, 0.0], G)
 
 
 @pytest.mark.parametrize(("goal", "expected"), TABLE_6_5)

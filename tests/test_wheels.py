@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from whexar.config import default_geometry
 from whexar.errors import UsageError
-from whexar.kinematics.geometry import default_geometry
 from whexar.kinematics.wheels import (
     direction_for_heading,
     heading_from_direction,
@@ -48,7 +48,9 @@ FRONT, MIDDLE, REAR = [0, 1], [2, 3], [4, 5]
 
 
 def test_straight_drives_all_wheels_equally_without_steering() -> None:
-    cmd = wheel_straight(CONTACTS, 0.2)  # 0.2 m/s: maximum wheeled speed, 6.5.1
+    cmd = wheel_straight(
+        CONTACTS, 0.2, wheel_radius=WHEEL_RADIUS
+    )  # 0.2 m/s: maximum wheeled speed, 6.5.1
     np.testing.assert_allclose(cmd.heading, 0.0, atol=0)
     np.testing.assert_allclose(cmd.direction, 0.0, atol=0)
     np.testing.assert_allclose(cmd.speed, 0.2)
@@ -58,7 +60,7 @@ def test_straight_drives_all_wheels_equally_without_steering() -> None:
 
 
 def test_reversing_keeps_wheels_straight_and_drives_backwards() -> None:
-    cmd = wheel_straight(CONTACTS, -0.1)
+    cmd = wheel_straight(CONTACTS, -0.1, wheel_radius=WHEEL_RADIUS)
     np.testing.assert_allclose(cmd.heading, 0.0, atol=1e-15)
     np.testing.assert_allclose(cmd.speed, -0.1)
 
@@ -67,7 +69,7 @@ def test_reversing_keeps_wheels_straight_and_drives_backwards() -> None:
 def test_sideways_points_every_wheel_the_same_way(angle_deg: float) -> None:
     # 6.5.2 "Driving Sideways" turned the direction servos to ±45°.
     phi = math.radians(angle_deg)
-    cmd = wheel_sideways(CONTACTS, 0.2, phi)
+    cmd = wheel_sideways(CONTACTS, 0.2, phi, wheel_radius=WHEEL_RADIUS)
     np.testing.assert_allclose(cmd.heading, phi, atol=1e-12)
     np.testing.assert_allclose(cmd.speed, 0.2)
     assert cmd.centre_of_rotation is None
@@ -82,14 +84,14 @@ def test_sideways_points_every_wheel_the_same_way(angle_deg: float) -> None:
 def test_sideways_beyond_90_degrees_reverses_instead_of_over_steering(
     angle_deg: float, heading_deg: float, sign: float
 ) -> None:
-    cmd = wheel_sideways(CONTACTS, 0.2, math.radians(angle_deg))
+    cmd = wheel_sideways(CONTACTS, 0.2, math.radians(angle_deg), wheel_radius=WHEEL_RADIUS)
     np.testing.assert_allclose(cmd.heading, math.radians(heading_deg), atol=1e-12)
     np.testing.assert_allclose(cmd.speed, sign * 0.2)
 
 
 def test_spin_matches_eq_5_10() -> None:
     omega = 2 * math.pi * 4 / 60  # 4 rpm, as measured in 6.5.2 "Rotation on the Spot"
-    cmd = wheel_spin(CONTACTS, omega)
+    cmd = wheel_spin(CONTACTS, omega, wheel_radius=WHEEL_RADIUS)
     alpha = math.atan(HALF_L / HALF_W)  # eq. 5.8–5.10: α = arctan(P'_z / P'_x)
     np.testing.assert_allclose(np.abs(cmd.heading[FRONT + REAR]), alpha, rtol=1e-12)
     np.testing.assert_allclose(cmd.heading[MIDDLE], 0.0, atol=1e-15)
@@ -105,7 +107,10 @@ def test_spin_matches_eq_5_10() -> None:
 
 
 def test_spin_clockwise_reverses_speeds_only() -> None:
-    ccw, cw = wheel_spin(CONTACTS, 0.5), wheel_spin(CONTACTS, -0.5)
+    ccw, cw = (
+        wheel_spin(CONTACTS, 0.5, wheel_radius=WHEEL_RADIUS),
+        wheel_spin(CONTACTS, -0.5, wheel_radius=WHEEL_RADIUS),
+    )
     np.testing.assert_allclose(cw.heading, ccw.heading)
     np.testing.assert_allclose(cw.speed, -ccw.speed)
 
@@ -122,7 +127,7 @@ def thesis_turn_angles(radius: float) -> tuple[float, float]:
 @pytest.mark.parametrize("radius", [0.8, 1.5, 4.0])
 def test_left_turn_matches_eq_5_11_to_5_16(radius: float) -> None:
     alpha_1, alpha_2 = thesis_turn_angles(radius)
-    cmd = wheel_turn(CONTACTS, radius, speed=0.2)
+    cmd = wheel_turn(CONTACTS, radius, speed=0.2, wheel_radius=WHEEL_RADIUS)
     # S = (0, R) lies on the left: the left (near) wheels are R − W_b/2 − P_x from S laterally.
     np.testing.assert_allclose(cmd.heading[1], alpha_1, rtol=1e-12)
     np.testing.assert_allclose(cmd.heading[0], alpha_2, rtol=1e-12)
@@ -140,15 +145,18 @@ def test_left_turn_matches_eq_5_11_to_5_16(radius: float) -> None:
 
 
 def test_turn_with_yaw_rate_equals_turn_with_speed() -> None:
-    by_speed = wheel_turn(CONTACTS, -1.2, speed=0.3)
-    by_rate = wheel_turn(CONTACTS, -1.2, yaw_rate=0.3 / -1.2)
+    by_speed = wheel_turn(CONTACTS, -1.2, speed=0.3, wheel_radius=WHEEL_RADIUS)
+    by_rate = wheel_turn(CONTACTS, -1.2, yaw_rate=0.3 / -1.2, wheel_radius=WHEEL_RADIUS)
     np.testing.assert_allclose(by_rate.heading, by_speed.heading)
     np.testing.assert_allclose(by_rate.speed, by_speed.speed)
     np.testing.assert_allclose(by_speed.twist, (0.3, 0.0, -0.25))
 
 
 def test_right_turn_mirrors_left_turn_direction_angles() -> None:
-    left, right = wheel_turn(CONTACTS, 1.0, speed=0.2), wheel_turn(CONTACTS, -1.0, speed=0.2)
+    left, right = (
+        wheel_turn(CONTACTS, 1.0, speed=0.2, wheel_radius=WHEEL_RADIUS),
+        wheel_turn(CONTACTS, -1.0, speed=0.2, wheel_radius=WHEEL_RADIUS),
+    )
     np.testing.assert_allclose(right.heading, -left.heading[MIRROR], atol=1e-15)
     np.testing.assert_allclose(right.speed, left.speed[MIRROR])
     # Mirrored legs take the same direction-joint signal for mirrored manoeuvres (5.1).
@@ -156,15 +164,15 @@ def test_right_turn_mirrors_left_turn_direction_angles() -> None:
 
 
 def test_turn_with_large_radius_tends_to_straight() -> None:
-    cmd = wheel_turn(CONTACTS, 1e6, speed=0.2)
+    cmd = wheel_turn(CONTACTS, 1e6, speed=0.2, wheel_radius=WHEEL_RADIUS)
     np.testing.assert_allclose(cmd.heading, 0.0, atol=1e-6)
     np.testing.assert_allclose(cmd.speed, 0.2, rtol=1e-6)
 
 
 def test_coxa_angles_offset_the_direction_joints() -> None:
     coxa = np.array([0.1, -0.2, 0.3, 0.05, -0.4, 0.25])
-    plain = wheel_spin(CONTACTS, 0.4)
-    rotated = wheel_spin(CONTACTS, 0.4, coxa=coxa)
+    plain = wheel_spin(CONTACTS, 0.4, wheel_radius=WHEEL_RADIUS)
+    rotated = wheel_spin(CONTACTS, 0.4, coxa=coxa, wheel_radius=WHEEL_RADIUS)
     np.testing.assert_allclose(rotated.heading, plain.heading)
     np.testing.assert_allclose(rotated.direction, plain.direction - coxa)
     # ψ = s·(coxa + direction): the coxa-rotated leg still points the wheel the same way.
@@ -188,7 +196,7 @@ def test_twist_reproduces_the_rigid_body_velocity(
     vx: float, vy: float, omega: float, offsets: list[float]
 ) -> None:
     contacts = CONTACTS + np.reshape(offsets, (6, 2))
-    cmd = wheel_twist(contacts, vx, vy, omega)
+    cmd = wheel_twist(contacts, vx, vy, omega, wheel_radius=WHEEL_RADIUS)
     assert np.all(cmd.heading > -math.pi / 2)
     assert np.all(cmd.heading <= math.pi / 2)
     # Independently: v_i = v + ω ẑ × c_i must equal speed·(cos ψ, sin ψ).
@@ -208,24 +216,27 @@ def test_wheel_radius_sets_wheel_rate() -> None:
 
 def test_contacts_with_z_are_accepted() -> None:
     with_z = np.column_stack([CONTACTS, np.full(6, -0.3)])
-    np.testing.assert_allclose(wheel_spin(with_z, 1.0).heading, wheel_spin(CONTACTS, 1.0).heading)
+    np.testing.assert_allclose(
+        wheel_spin(with_z, 1.0, wheel_radius=WHEEL_RADIUS).heading,
+        wheel_spin(CONTACTS, 1.0, wheel_radius=WHEEL_RADIUS).heading,
+    )
 
 
 def test_command_arrays_are_read_only() -> None:
-    cmd = wheel_straight(CONTACTS, 0.1)
+    cmd = wheel_straight(CONTACTS, 0.1, wheel_radius=WHEEL_RADIUS)
     with pytest.raises(ValueError, match="read-only"):
         cmd.speed[0] = 1.0
 
 
 def test_turn_radius_zero_points_to_spin() -> None:
     with pytest.raises(UsageError, match="wheel_spin"):
-        wheel_turn(CONTACTS, 0.0, speed=0.1)
+        wheel_turn(CONTACTS, 0.0, speed=0.1, wheel_radius=WHEEL_RADIUS)
 
 
 @pytest.mark.parametrize(("speed", "yaw_rate"), [(None, None), (0.1, 0.1)], ids=["neither", "both"])
 def test_turn_needs_exactly_one_rate(speed: float | None, yaw_rate: float | None) -> None:
     with pytest.raises(UsageError, match="exactly one"):
-        wheel_turn(CONTACTS, 1.0, speed=speed, yaw_rate=yaw_rate)
+        wheel_turn(CONTACTS, 1.0, speed=speed, yaw_rate=yaw_rate, wheel_radius=WHEEL_RADIUS)
 
 
 @pytest.mark.parametrize(
@@ -235,18 +246,18 @@ def test_turn_needs_exactly_one_rate(speed: float | None, yaw_rate: float | None
 )
 def test_bad_contact_shapes_are_rejected(contacts: np.ndarray) -> None:
     with pytest.raises(UsageError, match="shape"):
-        wheel_straight(contacts, 0.1)
+        wheel_straight(contacts, 0.1, wheel_radius=WHEEL_RADIUS)
 
 
 def test_non_finite_inputs_are_rejected() -> None:
     bad = CONTACTS.copy()
     bad[3, 1] = np.nan
     with pytest.raises(UsageError, match=r"contacts\[3, 1\]"):
-        wheel_straight(bad, 0.1)
+        wheel_straight(bad, 0.1, wheel_radius=WHEEL_RADIUS)
     with pytest.raises(UsageError, match="speed"):
-        wheel_straight(CONTACTS, math.inf)
+        wheel_straight(CONTACTS, math.inf, wheel_radius=WHEEL_RADIUS)
     with pytest.raises(UsageError, match="coxa"):
-        wheel_straight(CONTACTS, 0.1, coxa=[0.0] * 5)
+        wheel_straight(CONTACTS, 0.1, coxa=[0.0] * 5, wheel_radius=WHEEL_RADIUS)
 
 
 @pytest.mark.parametrize("radius", [0.0, -0.033, math.nan])

@@ -36,12 +36,11 @@ def _print_json(value: object) -> None:
 
 
 def _geometry(args: argparse.Namespace) -> LegGeometry:
-    from whexar.config import load_config
-    from whexar.kinematics.geometry import LegGeometry, default_geometry
+    from whexar.config import default_geometry, load_config
 
     if args.config is None:
         return default_geometry()
-    return LegGeometry.from_config(load_config(args.config))
+    return load_config(args.config).leg_geometry()
 
 
 # --------------------------------------------------------------------------- config
@@ -150,7 +149,7 @@ def _kin_gait(args: argparse.Namespace) -> int:
     if args.width < 16:
         raise UsageError(f"--width {args.width}; allowed: 16 characters or more")
     cfg = RobotConfig() if args.config is None else load_config(args.config)
-    feet = leg_to_body(stance_feet(cfg.stance(args.stance)))
+    feet = leg_to_body(stance_feet(cfg.stance(args.stance)), cfg.leg_geometry())
     trajectory = FootTrajectory(args.step_mm / 1000, args.height_mm / 1000, chosen.duty_factor)
     margin, at = gait_stability_margin(chosen, feet, trajectory)
     if args.json:

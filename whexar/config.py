@@ -5,8 +5,11 @@ Control of a Walking Robot*), so ``RobotConfig()`` *is* WHexaR; the file
 ``config/whexar.toml`` spells the same values out, key by key, with sources.
 
 Unit rule: the file names every unit in its keys (``_mm``, ``_deg``, ``_g``,
-``_us``, ``_hz``, ``_counts``…); code converts to SI once, at the edge (see the
-``*_m`` / ``*_rad`` properties and :mod:`whexar.kinematics.geometry`).
+``_us``, ``_hz``, ``_counts``…); code converts to SI once, at the edge: the
+``*_rad`` properties, and :meth:`RobotConfig.leg_geometry` and
+:meth:`RobotConfig.stance`, which build what the kinematics takes. The
+kinematics never reads the configuration; the configuration calls it to
+check that every stance preset is reachable.
 
 Validation runs in two layers, so that one bad key never hides another:
 
@@ -22,6 +25,7 @@ Validation runs in two layers, so that one bad key never hides another:
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import typing
@@ -29,6 +33,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Final, Literal
 
+import numpy as np
 from pydantic import (
     Discriminator,
     Field,
@@ -40,9 +45,12 @@ from pydantic import (
 
 from whexar.bus.plan import PRESETS, ReadPlan
 from whexar.bus.protocol import MAX_ID
-from whexar.errors import MISSING, ConfigError, Problem
+from whexar.errors import MISSING, ConfigError, KinematicsError, Problem
+from whexar.kinematics.body import Stance, stance_feet
 from whexar.kinematics.gait import GAIT_RANKING
+from whexar.kinematics.geometry import LegGeometry
 from whexar.kinematics.indices import STANDARD_GRAVITY, SUPPLY_VOLTAGE, WHEXAR_MASS
+from whexar.kinematics.leg import ik
 from whexar.kinematics.sensing import IR_EXPONENT, IR_K_CM
 from whexar.robot import JOINT_NAMES, LEG_NAMES, POSITIONING_JOINTS, servo_id
 from whexar.runtime.schema import (
@@ -565,6 +573,14 @@ class StanceSpec(Section):
     front_rear_yaw_deg: float = Field(default=0.0, ge=-90, le=90, allow_inf_nan=False)
     description: str = ""
 
+    def to_stance(self) -> Stance:
+        """This preset in SI, as the kinematics takes it."""
+        return Stance(
+            reach=self.reach_mm / 1000,
+            height=self.height_mm / 1000,
+            front_rear_yaw=math.radians(self.front_rear_yaw_deg),
+        )
+
 
 def _default_stances() -> dict[str, StanceSpec]:
     # Fig. 6.1 shows the stances without joint values; reach and height are
@@ -634,13 +650,40 @@ class RobotConfig(CheckedSection):
             found.extend(check(self))
         return found
 
-    def stance(self, name: str) -> StanceSpec:
-        """The stance preset called ``name``; a ConfigError names the known ones."""
+    def stance(self, name: str) -> Stance:
+        """The stance preset called ``name``, in SI; a ConfigError names the known ones."""
         try:
-            return self.stances[name]
+            return self.stances[name].to_stance()
         except KeyError:
             allowed = ", ".join(sorted(self.stances))
             raise ConfigError("stances", [Problem("stances", name, f"one of {allowed}")]) from None
+
+    def leg_geometry(self) -> LegGeometry:
+        """The legs' geometry in SI, as the kinematics takes it (Tables 5.2, 5.3)."""
+        rows = self.dh.rows()
+        limits = []
+        for name in POSITIONING_JOINTS:
+            rad = self.joints.by_name(name).limits_rad
+            limits.append(rad if rad is not None else (-math.inf, math.inf))
+        return LegGeometry(
+            dh_d=np.array([r.d_mm / 1000 for r in rows]),
+            dh_a=np.array([r.a_mm / 1000 for r in rows]),
+            dh_alpha=np.array([math.radians(r.alpha_deg) for r in rows]),
+            theta_offset=np.array([math.radians(r.theta_offset_deg) for r in rows]),
+            theta_sign=np.array([float(r.theta_sign) for r in rows]),
+            limits=np.array(limits),
+            direction_length=self.joints.direction.length_mm / 1000,
+            wheel_radius=self.joints.wheel.length_mm / 1000,
+            mounts=np.array([[c / 1000 for c in leg.mount_mm] for leg in self.legs]),
+        )
+
+    def servos(self) -> dict[int, ServoModelName]:
+        """Every servo's ID and model, legs in order and coxa to wheel within each."""
+        return {
+            sid: self.joints.by_name(JOINT_NAMES[j]).model
+            for leg in self.legs
+            for j, sid in enumerate(leg.servo_ids)
+        }
 
 
 def _section_problems(name: str, value: object) -> list[Problem]:
@@ -695,18 +738,13 @@ def _check_servo_models(cfg: RobotConfig) -> list[Problem]:
 def _check_stances(cfg: RobotConfig) -> list[Problem]:
     # Each preset must be reachable by every leg within the joint limits, or
     # the robot could be commanded into a posture it cannot take.
-    from whexar.errors import KinematicsError
-    from whexar.kinematics.body import stance_feet
-    from whexar.kinematics.geometry import LegGeometry
-    from whexar.kinematics.leg import ik
-
     if _check_servo_models(cfg) or cfg.joints.problems("joints") or cfg.dh.problems("dh"):
         return []
-    geometry = LegGeometry.from_config(cfg)
+    geometry = cfg.leg_geometry()
     found: list[Problem] = []
     for name, stance in cfg.stances.items():
         try:
-            ik(stance_feet(stance), geometry, target="contact")
+            ik(stance_feet(stance.to_stance()), geometry, target="contact")
         except KinematicsError as exc:
             found.append(
                 Problem(
@@ -771,3 +809,9 @@ def config_schema() -> dict[str, Any]:
     schema = RobotConfig.model_json_schema()
     schema["title"] = "WHexaR robot configuration"
     return schema
+
+
+@functools.cache
+def default_geometry() -> LegGeometry:
+    """The leg geometry of the thesis robot, ``RobotConfig().leg_geometry()``, made once."""
+    return RobotConfig().leg_geometry()

@@ -11,7 +11,6 @@ import numpy as np
 from whexar.bench import Figure, Progress, Report, median_seconds
 from whexar.config import RobotConfig
 from whexar.kinematics.body import stance_feet
-from whexar.kinematics.geometry import default_geometry
 from whexar.kinematics.leg import ik
 
 SIX_LEG_TARGET_US = 50.0
@@ -20,8 +19,9 @@ TEN_K_TARGET_MS = 5.0
 
 def run(progress: Progress = None) -> Report:
     """Measure and return the figures; ``progress`` receives a line per step."""
-    geometry = default_geometry()
-    feet = stance_feet(RobotConfig().stance("default"))
+    cfg = RobotConfig()
+    geometry = cfg.leg_geometry()
+    feet = stance_feet(cfg.stance("default"))
     rng = np.random.default_rng(7)
     # 10,000 targets spread over the working volume under the default stance,
     # some out of reach: clamping is part of the cost a controller pays.

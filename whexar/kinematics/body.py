@@ -14,18 +14,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
-from whexar.kinematics.geometry import SIDE_SIGN, LegGeometry, default_geometry, leg_positions
+from whexar.kinematics.geometry import SIDE_SIGN, LegGeometry, leg_positions
 from whexar.kinematics.leg import IKSolution, Target, ik
 from whexar.robot import N_LEGS
-
-if TYPE_CHECKING:
-    from whexar.config import StanceSpec
+from whexar.runtime.checks import positive, real
 
 
 def _six(points: ArrayLike, what: str) -> FloatArray:
@@ -41,9 +38,9 @@ def _six(points: ArrayLike, what: str) -> FloatArray:
     return array
 
 
-def leg_to_body(points: ArrayLike, geometry: LegGeometry | None = None) -> FloatArray:
+def leg_to_body(points: ArrayLike, geometry: LegGeometry) -> FloatArray:
     """Leg-frame points (..., 6, 3) → body frame."""
-    g = default_geometry() if geometry is None else geometry
+    g = geometry
     p = _six(points, "leg-frame points")
     out = np.empty_like(p)
     out[..., 0] = p[..., 2]
@@ -52,9 +49,9 @@ def leg_to_body(points: ArrayLike, geometry: LegGeometry | None = None) -> Float
     return out + g.mounts
 
 
-def body_to_leg(points: ArrayLike, geometry: LegGeometry | None = None) -> FloatArray:
+def body_to_leg(points: ArrayLike, geometry: LegGeometry) -> FloatArray:
     """Body-frame points (..., 6, 3) → each leg's own frame."""
-    g = default_geometry() if geometry is None else geometry
+    g = geometry
     d = _six(points, "body-frame points") - g.mounts
     out = np.empty_like(d)
     out[..., 0] = -SIDE_SIGN * d[..., 1]
@@ -112,15 +109,37 @@ def apply_body_pose(feet: ArrayLike, pose: BodyPose) -> FloatArray:
     return result
 
 
-def stance_feet(stance: StanceSpec) -> FloatArray:
-    """The six wheel-contact points of a stance preset, each in its leg frame (6, 3).
+@dataclass(frozen=True)
+class Stance:
+    """A standing posture, the same for all legs up to the front/rear yaw (Žák 2023, 6.3, 6.4).
 
-    Front legs turn forward and rear legs backward by ``front_rear_yaw_deg``
+    ``reach`` is the horizontal distance from the coxa joint to the wheel's
+    contact point and ``height`` the height of the coxa joints above the
+    ground (m); ``front_rear_yaw`` turns the front legs forward and the rear
+    legs backward (rad; 6.4: 25° stopped the tripod gait from tipping
+    backwards). The configuration's stance presets build these
+    (:meth:`whexar.config.RobotConfig.stance`).
+    """
+
+    reach: float
+    height: float
+    front_rear_yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        positive("reach", self.reach, "m")
+        positive("height", self.height, "m")
+        real("front_rear_yaw", self.front_rear_yaw)
+
+
+def stance_feet(stance: Stance) -> FloatArray:
+    """The six wheel-contact points of a stance, each in its leg frame (6, 3).
+
+    Front legs turn forward and rear legs backward by ``front_rear_yaw``
     (6.4); in a leg frame a forward turn is +z on both sides.
     """
-    yaw = math.radians(stance.front_rear_yaw_deg)
+    yaw = stance.front_rear_yaw
     sign = {"front": 1.0, "middle": 0.0, "rear": -1.0}
-    reach, height = stance.reach_mm / 1000, stance.height_mm / 1000
+    reach, height = stance.reach, stance.height
     return np.array(
         [
             [reach * math.cos(sign[pos] * yaw), height, reach * math.sin(sign[pos] * yaw)]
@@ -131,8 +150,8 @@ def stance_feet(stance: StanceSpec) -> FloatArray:
 
 def pose_ik(
     feet: ArrayLike,
+    geometry: LegGeometry,
     pose: BodyPose = BodyPose(),
-    geometry: LegGeometry | None = None,
     *,
     target: Target = "contact",
     trochanter_follows_pitch: bool = False,
@@ -143,7 +162,7 @@ def pose_ik(
     With ``trochanter_follows_pitch`` the trochanters turn by the body pitch
     (eq. 4.18), keeping the legs vertical when the body pitches on level ground.
     """
-    g = default_geometry() if geometry is None else geometry
+    g = geometry
     in_legs = body_to_leg(apply_body_pose(feet, pose), g)
     pitch = pose.pitch if trochanter_follows_pitch else 0.0
     return ik(in_legs, g, pitch=pitch, target=target, clamp=clamp)

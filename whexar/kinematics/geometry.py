@@ -1,4 +1,4 @@
-"""Leg and body geometry in SI units, built once from the robot configuration.
+"""Leg and body geometry in SI units; the robot configuration builds it.
 
 The leg frame is the one of the thesis's inverse kinematics (Žák 2023,
 Fig. 4.3, Table 6.5): origin at the coxa joint, **x** outward along the leg,
@@ -13,19 +13,13 @@ axes (x forward, y left, z up).
 
 from __future__ import annotations
 
-import functools
-import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from whexar._typing import FloatArray
-from whexar.robot import LEG_NAMES, N_LEGS, POSITIONING_JOINTS, leg_side
-
-if TYPE_CHECKING:
-    from whexar.config import RobotConfig
+from whexar.robot import LEG_NAMES, N_LEGS, leg_side
 
 DH_TO_LEG: FloatArray = np.array([[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
 """Rotation taking DH base coordinates (Table 5.3) to the thesis leg frame (Fig. 4.3)."""
@@ -48,8 +42,9 @@ def _frozen(values: object) -> FloatArray:
 class LegGeometry:
     """Everything the kinematics needs, in metres and radians.
 
-    Build it with :meth:`from_config` or take the thesis robot from
-    :func:`default_geometry`.
+    The configuration builds it (:meth:`whexar.config.RobotConfig.leg_geometry`;
+    :func:`whexar.config.default_geometry` is the thesis robot). Arrays are
+    stored as read-only float64 copies: one geometry is shared by every caller.
     """
 
     dh_d: FloatArray
@@ -70,6 +65,12 @@ class LegGeometry:
     """Wheel axle to ground, m (Table 5.2: 33 mm)."""
     mounts: FloatArray
     """(6, 3) coxa joints in the body frame, m (legs in :data:`LEG_NAMES` order)."""
+
+    def __post_init__(self) -> None:
+        for name in ("dh_d", "dh_a", "dh_alpha", "theta_offset", "theta_sign", "limits", "mounts"):
+            object.__setattr__(self, name, _frozen(getattr(self, name)))
+        object.__setattr__(self, "direction_length", float(self.direction_length))
+        object.__setattr__(self, "wheel_radius", float(self.wheel_radius))
 
     @cached_property
     def trochanter_offset(self) -> float:
@@ -115,34 +116,6 @@ class LegGeometry:
     def upper_limits(self) -> FloatArray:
         """Upper joint limits of coxa…tarsus, rad."""
         return _frozen(self.limits[:, 1])
-
-    @classmethod
-    def from_config(cls, config: RobotConfig) -> LegGeometry:
-        """Convert a validated configuration to SI geometry."""
-        rows = config.dh.rows()
-        limits = []
-        for name in POSITIONING_JOINTS:
-            rad = config.joints.by_name(name).limits_rad
-            limits.append(rad if rad is not None else (-math.inf, math.inf))
-        return cls(
-            dh_d=_frozen([r.d_mm / 1000 for r in rows]),
-            dh_a=_frozen([r.a_mm / 1000 for r in rows]),
-            dh_alpha=_frozen([math.radians(r.alpha_deg) for r in rows]),
-            theta_offset=_frozen([math.radians(r.theta_offset_deg) for r in rows]),
-            theta_sign=_frozen([r.theta_sign for r in rows]),
-            limits=_frozen(limits),
-            direction_length=config.joints.direction.length_mm / 1000,
-            wheel_radius=config.joints.wheel.length_mm / 1000,
-            mounts=_frozen([[c / 1000 for c in leg.mount_mm] for leg in config.legs]),
-        )
-
-
-@functools.cache
-def default_geometry() -> LegGeometry:
-    """Geometry of the thesis robot (the defaults of :class:`whexar.config.RobotConfig`)."""
-    from whexar.config import RobotConfig
-
-    return LegGeometry.from_config(RobotConfig())
 
 
 def leg_positions() -> tuple[str, ...]:

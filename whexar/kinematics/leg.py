@@ -34,7 +34,7 @@ import numpy as np
 
 from whexar._typing import ArrayLike, BoolArray, FloatArray
 from whexar.errors import JointLimitError, UnreachableError, UsageError
-from whexar.kinematics.geometry import DH_TO_LEG, LegGeometry, default_geometry
+from whexar.kinematics.geometry import DH_TO_LEG, LegGeometry
 from whexar.robot import POSITIONING_JOINTS
 
 Target = Literal["tarsus", "contact"]
@@ -94,7 +94,7 @@ def _mm(point: FloatArray) -> str:
 
 def ik(
     points: ArrayLike,
-    geometry: LegGeometry | None = None,
+    geometry: LegGeometry,
     *,
     pitch: ArrayLike = 0.0,
     target: Target = "tarsus",
@@ -111,7 +111,7 @@ def ik(
     within the limits — the nearest the leg can do along the same direction —
     and :attr:`IKSolution.clamped` says which ones were not met exactly.
     """
-    g = default_geometry() if geometry is None else geometry
+    g = geometry
     p = _points(points)
     if target not in ("tarsus", "contact"):
         raise UsageError(f"IK target {target!r}; allowed: 'tarsus' or 'contact'")
@@ -226,9 +226,9 @@ def _angles(angles: ArrayLike) -> FloatArray:
     return array
 
 
-def dh_transforms(angles: ArrayLike, geometry: LegGeometry | None = None) -> FloatArray:
+def dh_transforms(angles: ArrayLike, geometry: LegGeometry) -> FloatArray:
     """The five DH link transforms A₀…A₄ (eq. 4.4–4.5), shape (..., 5, 4, 4)."""
-    g = default_geometry() if geometry is None else geometry
+    g = geometry
     q = _angles(angles)
     theta = g.theta_sign * q + g.theta_offset
     ct, st = np.cos(theta), np.sin(theta)
@@ -242,7 +242,7 @@ def dh_transforms(angles: ArrayLike, geometry: LegGeometry | None = None) -> Flo
     return out
 
 
-def fk_chain(angles: ArrayLike, geometry: LegGeometry | None = None) -> FloatArray:
+def fk_chain(angles: ArrayLike, geometry: LegGeometry) -> FloatArray:
     """Every point of the leg for joint angles (..., 5): shape (..., 7, 3), leg frame.
 
     The points are :data:`CHAIN_POINTS`: coxa, femur, tibia and tarsus joints
@@ -250,7 +250,7 @@ def fk_chain(angles: ArrayLike, geometry: LegGeometry | None = None) -> FloatArr
     axle and the wheel's ground contact, which continue along the last
     segment by the direction and wheel lengths of Table 5.2.
     """
-    g = default_geometry() if geometry is None else geometry
+    g = geometry
     links = dh_transforms(angles, g)
     frames = [links[..., 0, :, :]]
     for k in range(1, 5):
@@ -265,9 +265,7 @@ def fk_chain(angles: ArrayLike, geometry: LegGeometry | None = None) -> FloatArr
     return stacked @ DH_TO_LEG.T
 
 
-def fk(
-    angles: ArrayLike, geometry: LegGeometry | None = None, *, point: Target = "tarsus"
-) -> FloatArray:
+def fk(angles: ArrayLike, geometry: LegGeometry, *, point: Target = "tarsus") -> FloatArray:
     """Forward kinematics (eq. 4.4–4.6): the tarsus joint or the wheel contact, (..., 3)."""
     if point not in ("tarsus", "contact"):
         raise UsageError(f"FK point {point!r}; allowed: 'tarsus' or 'contact'")

@@ -30,7 +30,7 @@ import numpy as np
 
 from whexar._typing import ArrayLike, FloatArray
 from whexar.errors import UsageError
-from whexar.kinematics.geometry import SIDE_SIGN, default_geometry
+from whexar.kinematics.geometry import SIDE_SIGN
 from whexar.robot import LEG_NAMES, N_LEGS
 from whexar.runtime.checks import positive, real
 
@@ -101,25 +101,22 @@ def wheel_twist(
     yaw_rate: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float | None = None,
+    wheel_radius: float,
 ) -> WheelCommand:
     """Wheel set-points that move the body with twist (vx, vy, ω) about its centre C.
 
     ``contacts`` are the six wheel contact points in the body frame, shape (6, 2) or (6, 3) in
     metres (z is ignored); ``coxa`` the six coxa angles in rad (default 0), which rotate the
-    lower leg and so offset the direction joints. Each contact moves with v_i = v + ω ẑ × c_i;
-    its wheel is steered along v_i and rolls at |v_i| = |ω|·(distance to the centre of
-    rotation) (Žák 2023, 5.4, eq. 5.17–5.18). The other motions of this module reduce to this.
+    lower leg and so offset the direction joints; ``wheel_radius`` (m) turns speeds into wheel
+    rates (Table 5.2: 33 mm, :attr:`~whexar.kinematics.geometry.LegGeometry.wheel_radius`).
+    Each contact moves with v_i = v + ω ẑ × c_i; its wheel is steered along v_i and rolls at
+    |v_i| = |ω|·(distance to the centre of rotation) (Žák 2023, 5.4, eq. 5.17–5.18). The
+    other motions of this module reduce to this.
     A wheel at the centre of rotation (speed below 1e-12 m/s) has no heading and is kept at 0.
     """
     points = _contacts(contacts)
     coxa_angles = _coxa(coxa)
-    # The configured robot's wheel (Table 5.2: 33 mm) unless told otherwise.
-    radius = (
-        default_geometry().wheel_radius
-        if wheel_radius is None
-        else positive("wheel_radius", wheel_radius, "m")
-    )
+    radius = positive("wheel_radius", wheel_radius, "m")
     vx_, vy_, omega = real("vx", vx), real("vy", vy), real("yaw_rate", yaw_rate)
 
     # ω ẑ × (x, y) = (−ω y, ω x)
@@ -153,7 +150,7 @@ def wheel_straight(
     speed: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float | None = None,
+    wheel_radius: float,
 ) -> WheelCommand:
     """Drive straight ahead at ``speed`` m/s (negative reverses): wheels not turned (Fig. 5.15a)."""
     v = real("speed", speed)
@@ -166,7 +163,7 @@ def wheel_sideways(
     angle: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float | None = None,
+    wheel_radius: float,
 ) -> WheelCommand:
     """Drive at ``speed`` m/s towards body-frame direction ``angle`` (rad, counter-clockwise).
 
@@ -185,7 +182,7 @@ def wheel_spin(
     yaw_rate: float,
     *,
     coxa: ArrayLike | None = None,
-    wheel_radius: float | None = None,
+    wheel_radius: float,
 ) -> WheelCommand:
     """Rotate on the spot about the body centre C at ``yaw_rate`` rad/s (positive = left, CCW).
 
@@ -203,7 +200,7 @@ def wheel_turn(
     speed: float | None = None,
     yaw_rate: float | None = None,
     coxa: ArrayLike | None = None,
-    wheel_radius: float | None = None,
+    wheel_radius: float,
 ) -> WheelCommand:
     """Turn about S = (0, ``radius``) on the body's lateral axis (Žák 2023, eq. 5.11–5.16).
 
