@@ -19,13 +19,11 @@ from dynamixel_sdk import (
 )
 
 from whexar.bus.control_table import MODELS, HardwareError
-from whexar.bus.emulator.chain import (
-    EmulatedPort,
-    ServoChain,
-    TimingModel,
-    VirtualServo,
-    _trapezoid,
-)
+from whexar.bus.emulator.chain import ServoChain
+from whexar.bus.emulator.dynamics import _trapezoid
+from whexar.bus.emulator.port import EmulatedPort
+from whexar.bus.emulator.servo import VirtualServo
+from whexar.bus.emulator.timing import TimingModel
 from whexar.bus.protocol import (
     ALERT,
     BROADCAST_ID,
@@ -42,6 +40,7 @@ from whexar.bus.protocol import (
 from whexar.config import load_config
 from whexar.errors import UsageError
 from whexar.robot import JOINT_NAMES
+from whexar.testing.bus import servo_chain
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "whexar.toml"
 PH = PacketHandler(2.0)
@@ -65,7 +64,7 @@ class Bus:
 
 def make_bus(**kw: object) -> Bus:
     clock = [0.0]
-    chain = ServoChain.from_config(load_config(CONFIG), **kw)  # type: ignore[arg-type]
+    chain = servo_chain(load_config(CONFIG), **kw)
     return Bus(chain, EmulatedPort(chain, lambda: clock[0]), clock)
 
 

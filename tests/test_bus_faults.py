@@ -8,7 +8,6 @@ from typing import Any
 import dynamixel_sdk as dxl
 import pytest
 
-from whexar.bus.emulator.chain import EmulatedPort, ServoChain
 from whexar.bus.emulator.faults import (
     EVENTS,
     Fault,
@@ -17,8 +16,10 @@ from whexar.bus.emulator.faults import (
     load_fault_plan,
     parse_fault_plan,
 )
+from whexar.bus.emulator.port import EmulatedPort
 from whexar.config import RobotConfig
 from whexar.errors import ConfigError
+from whexar.testing.bus import servo_chain
 
 FAULTS_DIR = Path(__file__).resolve().parents[1] / "config" / "faults"
 
@@ -148,7 +149,7 @@ class Bus:
 
     def __init__(self, *faults: dict[str, Any], seed: int = 0) -> None:
         self.t = 0.0
-        self.chain = ServoChain.from_config(CFG, return_delay_us=20)
+        self.chain = servo_chain(CFG, return_delay_us=20)
         plan = parse_fault_plan({"seed": seed, "faults": list(faults)})
         self.injector = FaultInjector(plan).attach(self.chain)
         self.port = EmulatedPort(self.chain, lambda: self.t)
@@ -318,4 +319,4 @@ def test_reboot_event_and_fault_on_a_servo_not_on_the_bus() -> None:
     assert bus.read1(9, HW_ERROR) == (0x04, OK, ALERT)
     plan = parse_fault_plan({"faults": [{"kind": "silent", "ids": [1, 43], "at_s": 0}]})
     with pytest.raises(ConfigError, match=r"faults\[0\]\.ids = 43: an ID on the bus: 1–42"):
-        FaultInjector(plan).attach(ServoChain.from_config(CFG))
+        FaultInjector(plan).attach(servo_chain(CFG))

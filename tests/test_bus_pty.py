@@ -8,10 +8,10 @@ from collections.abc import Iterator
 import dynamixel_sdk as dxl
 import pytest
 
-from whexar.bus.emulator.chain import ServoChain
 from whexar.bus.emulator.pty import PACKET_GAP_S, PtyEmulator
 from whexar.config import RobotConfig
 from whexar.runtime.clock import monotonic, wait_until
+from whexar.testing.bus import servo_chain
 
 CFG = RobotConfig()
 IDS = [sid for leg in CFG.legs for sid in leg.servo_ids]
@@ -51,7 +51,7 @@ def _sync_read(port: dxl.PortHandler, start: int, length: int) -> tuple[int, dxl
 def test_sync_read_of_42_servos_through_the_sdk(port_of: list[dxl.PortHandler]) -> None:
     assert len(IDS) == 42
     with PtyEmulator(
-        ServoChain.from_config(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=False
+        servo_chain(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=False
     ) as emulator:
         port = _open(emulator.path, port_of)
         # Addresses 0–9: model number, model information, firmware, ID, baud, return delay.
@@ -71,7 +71,7 @@ def test_garbage_and_partial_packets_do_not_stop_the_emulator(
     port_of: list[dxl.PortHandler],
 ) -> None:
     with PtyEmulator(
-        ServoChain.from_config(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=False
+        servo_chain(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=False
     ) as emulator:
         port = _open(emulator.path, port_of)
         # A garbage run, then a header with an absurd LEN, then half a packet.
@@ -89,7 +89,7 @@ def test_garbage_and_partial_packets_do_not_stop_the_emulator(
 
 def test_realtime_sync_read_takes_its_modelled_bus_time(port_of: list[dxl.PortHandler]) -> None:
     with PtyEmulator(
-        ServoChain.from_config(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=True
+        servo_chain(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=True
     ) as emulator:
         port = _open(emulator.path, port_of)
         # Present Current … Present Position (126–135): 42 × 10 bytes.
@@ -113,7 +113,7 @@ def test_realtime_sync_read_takes_its_modelled_bus_time(port_of: list[dxl.PortHa
 
 def test_a_sync_write_occupies_the_bus(port_of: list[dxl.PortHandler]) -> None:
     with PtyEmulator(
-        ServoChain.from_config(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=True
+        servo_chain(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=True
     ) as emulator:
         port = _open(emulator.path, port_of)
         handler = dxl.PacketHandler(2.0)
@@ -130,9 +130,7 @@ def test_a_sync_write_occupies_the_bus(port_of: list[dxl.PortHandler]) -> None:
 
 
 def test_close_is_idempotent_and_the_pty_goes_away() -> None:
-    emulator = PtyEmulator(
-        ServoChain.from_config(CFG, return_delay_us=CFG.bus.return_delay_time_us)
-    ).start()
+    emulator = PtyEmulator(servo_chain(CFG, return_delay_us=CFG.bus.return_delay_time_us)).start()
     path = emulator.path
     assert os.path.exists(path)
     emulator.close()

@@ -37,7 +37,7 @@ from whexar.robot import JOINT_NAMES, LEG_NAMES, servo_id
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed, ActorStopped, Event, SafeStop
 from whexar.testing import Harness, RunResult, run_actors
-from whexar.testing.bus import bus_graph
+from whexar.testing.bus import bus_graph, servo_chain
 
 CFG = RobotConfig()
 FAULT_PLANS = Path(__file__).resolve().parent.parent / "config" / "faults"
@@ -74,7 +74,7 @@ RECOVERY_EVENTS = (
 
 @pytest.fixture
 def chain() -> Iterator[ServoChain]:
-    made = ServoChain.from_config(CFG)
+    made = servo_chain(CFG)
     DEVICES.register(SERVO_CHAIN, "test", made)
     yield made
     DEVICES.unregister(SERVO_CHAIN, "test")
@@ -481,7 +481,7 @@ def test_same_fault_plan_gives_the_same_log() -> None:
     )
     digests = []
     for _ in range(2):
-        made = ServoChain.from_config(CFG)
+        made = servo_chain(CFG)
         FaultInjector(plan).attach(made)
         DEVICES.register(SERVO_CHAIN, "test", made)
         try:

@@ -25,7 +25,7 @@ from whexar.robot import JOINT_NAMES, servo_id
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed
 from whexar.testing import Harness, RunResult, run_actors
-from whexar.testing.bus import bus_graph
+from whexar.testing.bus import bus_graph, servo_chain
 
 CFG = RobotConfig()
 FEMUR = JOINT_NAMES.index("femur")
@@ -35,7 +35,7 @@ COXA = JOINT_NAMES.index("coxa")
 
 @pytest.fixture
 def chain() -> Iterator[ServoChain]:
-    made = ServoChain.from_config(CFG)
+    made = servo_chain(CFG)
     DEVICES.register(SERVO_CHAIN, "test", made)
     yield made
     DEVICES.unregister(SERVO_CHAIN, "test")
@@ -127,7 +127,7 @@ def test_torque_is_on_while_running_and_held_with_on_stop_hold(chain: ServoChain
 
 def test_model_mismatch_names_the_servo_and_both_models() -> None:
     cfg = RobotConfig()
-    made = ServoChain.from_config(cfg)
+    made = servo_chain(cfg)
     wrong = servo_id(0, "coxa")
     made.servos[wrong].table[0:2] = (321).to_bytes(2, "little")  # an MX-106 where an MX-64 is
     DEVICES.register(SERVO_CHAIN, "test", made)
@@ -246,7 +246,7 @@ def test_goal_outside_limits_is_clamped_and_reported(chain: ServoChain) -> None:
 
 
 def test_fast_sync_read_is_used_when_the_servos_answer_it() -> None:
-    made = ServoChain.from_config(CFG, fast_sync_read=True)
+    made = servo_chain(CFG, fast_sync_read=True)
     DEVICES.register(SERVO_CHAIN, "test", made)
     try:
         result = run(graph({"plan": "default"}), duration=0.3)
@@ -257,7 +257,7 @@ def test_fast_sync_read_is_used_when_the_servos_answer_it() -> None:
 
 
 def test_fast_sync_read_falls_back_when_it_stops_working() -> None:
-    made = ServoChain.from_config(CFG, fast_sync_read=True)
+    made = servo_chain(CFG, fast_sync_read=True)
     DEVICES.register(SERVO_CHAIN, "test", made)
 
     async def scenario(h: Harness) -> None:
@@ -282,7 +282,7 @@ def test_fast_sync_read_falls_back_when_it_stops_working() -> None:
 def test_same_run_gives_the_same_log() -> None:
     digests = []
     for _ in range(2):
-        made = ServoChain.from_config(CFG)
+        made = servo_chain(CFG)
         DEVICES.register(SERVO_CHAIN, "test", made)
         try:
             digests.append(run(graph(wiggle={}), duration=0.5).log.digest())
@@ -349,7 +349,7 @@ def test_scheduler_over_a_pty_in_real_time_runs_and_stops_cleanly() -> None:
     """The thread-owned port path: real SDK, real serial I/O, real time, clean stop."""
     from whexar.bus.emulator.pty import PtyEmulator
 
-    made = ServoChain.from_config(CFG, return_delay_us=20)
+    made = servo_chain(CFG, return_delay_us=20)
     with PtyEmulator(made, realtime=False) as emulator:
         result = run_actors(
             graph({"port": emulator.path, "plan": "positioning"}),

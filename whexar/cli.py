@@ -268,17 +268,18 @@ def _emulate(args: argparse.Namespace) -> int:
     import threading
     from types import FrameType
 
-    from whexar.bus.emulator.chain import ServoChain, TimingModel
+    from whexar.bus.emulator.chain import ServoChain
     from whexar.bus.emulator.faults import FaultInjector, load_fault_plan
     from whexar.bus.emulator.pty import PtyEmulator
+    from whexar.bus.emulator.timing import TimingModel
     from whexar.config import RobotConfig, load_config
 
     cfg = RobotConfig() if args.servos is None else load_config(args.servos)
     plan = None if args.faults is None else load_fault_plan(args.faults)
     baud = cfg.bus.baudrate if args.baud is None else args.baud
     # The robot's servos hold the configured Return Delay Time in EEPROM.
-    chain = ServoChain.from_config(
-        cfg,
+    chain = ServoChain.for_models(
+        cfg.servos(),
         timing=TimingModel(baudrate=baud),
         fast_sync_read=args.fast_sync_read,
         return_delay_us=cfg.bus.return_delay_time_us,

@@ -312,11 +312,14 @@ class BusScheduler(Actor):
     def _open_owner(self) -> PortOwner:
         name = self.params.port or self.cfg.bus.port
         if name == EMULATOR or name.startswith(EMULATOR + ":"):
-            from whexar.bus.emulator.chain import SERVO_CHAIN, EmulatedPort, ServoChain
+            from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
+            from whexar.bus.emulator.port import EmulatedPort
 
             if name == EMULATOR:
-                chain = ServoChain.from_config(
-                    self.cfg, fast_sync_read=self.params.emulator_fast_sync_read
+                chain = ServoChain.for_models(
+                    self.cfg.servos(),
+                    baudrate=self.cfg.bus.baudrate,
+                    fast_sync_read=self.params.emulator_fast_sync_read,
                 )
                 if self.params.faults:
                     from whexar.bus.emulator.faults import FaultInjector, load_fault_plan

@@ -38,7 +38,8 @@ from whexar.actors.bus import BusScheduler
 from whexar.actors.messages import ServoStates
 from whexar.bench import Figure, Progress, Report
 from whexar.bus.control_table import block
-from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain, TimingModel
+from whexar.bus.emulator.chain import SERVO_CHAIN
+from whexar.bus.emulator.timing import TimingModel
 from whexar.bus.plan import PRESETS, ReadPlan
 from whexar.bus.protocol import sync_read_bytes, sync_write_bytes
 from whexar.bus.sdk import DxlBus, PortOwner
@@ -49,7 +50,7 @@ from whexar.runtime.devices import DEVICES
 from whexar.runtime.supervisor import Runtime
 from whexar.runtime.wiring import build_graph
 from whexar.testing import run_actors
-from whexar.testing.bus import bus_graph
+from whexar.testing.bus import bus_graph, servo_chain
 
 PLANS = ("thesis", "full_feedback", "fast_full_feedback", "positioning", "default")
 SHARE_OF_LIMIT = 0.95
@@ -110,7 +111,7 @@ def _rate(states: list[ServoStates], skip_s: float = 0.2) -> float:
 
 def virtual_rate(plan: str, cfg: RobotConfig, seconds: float = 3.0) -> float:
     """Cycles/s of ``plan`` on virtual time against a fresh in-process emulator."""
-    chain = ServoChain.from_config(cfg, fast_sync_read=PRESETS[plan].fast_sync_read == "on")
+    chain = servo_chain(cfg, fast_sync_read=PRESETS[plan].fast_sync_read == "on")
     DEVICES.register(SERVO_CHAIN, "bench", chain)
     try:
         result = run_actors(_graph("emulator:bench", plan), duration=seconds)
@@ -168,7 +169,7 @@ class TimedBusScheduler(BusScheduler):
 def cpu_per_cycle_ms(plan: str, cfg: RobotConfig, seconds: float = 2.0) -> float:
     """Real-time ms of the bus path per cycle: the scheduler's cycle, less its waits and the
     time spent inside the in-process emulator."""
-    chain = ServoChain.from_config(cfg)
+    chain = servo_chain(cfg)
     inside = TimedBusScheduler.inside
     transact = chain.transact
 

@@ -247,7 +247,7 @@ class InlinePortOwner:
     """Runs jobs on the loop against an in-process emulated port, then sleeps their bus time.
 
     ``port`` must offer ``take_elapsed()`` (the bus time its transactions
-    cost); :class:`~whexar.bus.emulator.chain.EmulatedPort` does.
+    cost); :class:`~whexar.bus.emulator.port.EmulatedPort` does.
     """
 
     def __init__(self, port: Any, clock: Clock) -> None:

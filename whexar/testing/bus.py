@@ -1,4 +1,5 @@
-"""The bus scheduler under test: a goal source that answers every cycle, and its graph.
+"""The bus scheduler under test: the robot's emulated servos, a goal source that answers
+every cycle, and its graph.
 
 :class:`GoalWiggle` listens to :class:`~whexar.actors.messages.ServoStates`
 and answers each cycle with goals for every joint: a slow sine around a
@@ -17,6 +18,8 @@ from typing import Any
 from pydantic import Field
 
 from whexar.actors.messages import JointGoal, JointGoals, ServoStates
+from whexar.bus.emulator.chain import ServoChain
+from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, N_LEGS
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
 
@@ -62,6 +65,16 @@ class GoalWiggle(Actor):
             if p.stop_after_cycles is not None and answered >= p.stop_after_cycles:
                 self.request_stop(f"answered {answered} cycles")
                 return
+
+
+def servo_chain(cfg: RobotConfig | None = None, **options: Any) -> ServoChain:
+    """The emulated servos of ``cfg`` (default: the thesis robot) at its bus's baud rate.
+
+    ``options`` go to :meth:`~whexar.bus.emulator.chain.ServoChain.for_models`
+    (``timing``, ``fast_sync_read``, ``return_delay_us``, ``load_model``).
+    """
+    cfg = RobotConfig() if cfg is None else cfg
+    return ServoChain.for_models(cfg.servos(), baudrate=cfg.bus.baudrate, **options)
 
 
 BUS_CHANNELS: dict[str, dict[str, str]] = {
