@@ -1,0 +1,59 @@
+"""The ``whexar`` command line: one module per command group, assembled here.
+
+* :mod:`~whexar.cli.config` — ``whexar config check | schema``;
+* :mod:`~whexar.cli.kin` — ``whexar kin ik | fk | gait``;
+* :mod:`~whexar.cli.run` — ``whexar run``: an actor graph from a wiring file;
+* :mod:`~whexar.cli.bus` — ``whexar emulate``, ``whexar bus scan``;
+* :mod:`~whexar.cli.sensors` — ``whexar sensors``: the sensor-board monitor;
+* :mod:`~whexar.cli.bench` — ``whexar bench kin | runtime | bus | sensors``;
+* :mod:`~whexar.cli.common` — what they share.
+
+A group adds its commands with ``add_commands(commands)``; each command
+imports what it needs when it runs, so ``whexar --help`` stays fast. The
+top layer: it may import every other package of whexar.
+
+Exit codes: 0 success; 1 a configuration with problems, a benchmark that
+missed its target, or a bus scan that found no servo (or could not open its
+port); 2 bad input (an unknown leg, an unreachable target, a malformed
+option); 3 ``whexar run`` stopped after an actor was escalated.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from whexar import __version__
+from whexar.cli import bench, bus, config, kin, run, sensors
+from whexar.cli.common import Handler
+from whexar.errors import ConfigError, UsageError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole ``whexar`` command tree."""
+    parser = argparse.ArgumentParser(
+        prog="whexar", description="WHexaR, the wheeled hexapod: runtime and tools."
+    )
+    parser.add_argument("--version", action="version", version=f"whexar {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for group in (config, kin, bench, run, bus, sensors):
+        group.add_commands(commands)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``whexar`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    handler: Handler = args.handler
+    try:
+        return handler(args)
+    except ConfigError as exc:
+        print(f"whexar: {exc}", file=sys.stderr)
+        return 1
+    except UsageError as exc:
+        print(f"whexar: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
