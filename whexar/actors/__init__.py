@@ -1,13 +1,19 @@
-"""Actors: every subsystem of the runtime, exchanging typed messages.
+"""The robot's actors and messages: the subsystems of WHexaR, on the actor runtime.
 
-* :mod:`~whexar.runtime.clock` — the runtime clock, real or virtual time;
-* :mod:`~whexar.actors.messages` — every message type, immutable and stamped;
-* :mod:`~whexar.runtime.channels` — bounded channels and their overflow policies;
-* :mod:`~whexar.runtime.actor` — the actor base class and its typed ports;
-* :mod:`~whexar.runtime.ticker` — deadline-based control cycles;
-* :mod:`~whexar.runtime.wiring` — the actor graph from configuration, checked;
-* :mod:`~whexar.runtime.supervisor` — start, supervision, safe stop, shutdown.
+* :mod:`~whexar.actors.messages` — the robot's messages: servo goals and states,
+  sensor frames, ranges, loads, tilt, and the devices' events;
+* :mod:`~whexar.actors.bus` — :class:`~whexar.actors.bus.BusScheduler`, the only owner
+  of the servo bus;
+* :mod:`~whexar.actors.sensors` — :class:`~whexar.actors.sensors.SensorReader`, the
+  sensor board's serial line;
+* :mod:`~whexar.actors.imu` — :class:`~whexar.actors.imu.ImuReader`, the LSM9DS1 on I²C.
 
-The robot's own actors (legs, coordinator, reflexes, bus, sensors) arrive
-with the issues that need them.
+The leg actors, the coordinator, the reflexes, the terrain estimator and the
+recorder join them. The runtime they run on (actors, ports, channels,
+clock, wiring, supervision) is :mod:`whexar.runtime`.
+
+May import: :mod:`whexar.config`, the device links (:mod:`whexar.bus`,
+:mod:`whexar.sensors`), :mod:`whexar.kinematics`, :mod:`whexar.robot`,
+:mod:`whexar.errors` and :mod:`whexar.runtime` — never the test helpers, the
+benchmarks or the command line.
 """

@@ -1,6 +1,11 @@
 """Benchmarks behind ``whexar bench …``: speed targets are measured here, not in tests.
 
-These are the only modules besides the clock that read the wall clock.
+One module per suite (:mod:`~whexar.bench.kin`, :mod:`~whexar.bench.runtime`,
+:mod:`~whexar.bench.bus`, :mod:`~whexar.bench.sensors`), each with a
+``run(progress) -> Report``. These are the only modules besides the clock
+that read the wall clock.
+
+May import: :mod:`whexar.testing` and everything below it; never the command line.
 """
 
 from __future__ import annotations

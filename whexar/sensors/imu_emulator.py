@@ -98,9 +98,9 @@ def _nak(address: int) -> OSError:
 class FakeSMBus:
     """An I²C bus in memory with ``smbus2.SMBus``'s byte and block calls.
 
-    Register it for the reader with
-    :func:`whexar.actors.imu.register_fake`; it outlives the actors, as
-    hardware does. :attr:`closes` counts :meth:`close` calls, which leave
+    Register it for the reader with ``DEVICES.register(I2C_BUS, name, bus)``
+    (:mod:`whexar.runtime.devices`); it outlives the actors, as hardware
+    does. :attr:`closes` counts :meth:`close` calls, which leave
     the bus usable (the next open would find the same devices).
     """
 

@@ -10,7 +10,16 @@ Used by whexar's own tests and meant for anyone extending the runtime::
 
 See :func:`run_actors`, :class:`Harness` and :class:`MessageLog`; the small
 actors in :mod:`whexar.testing.actors` (``Pulse``, ``Relay``, ``Sink``) are
-importable from the wiring as ``whexar.testing:Pulse`` and so on.
+importable from the wiring as ``whexar.testing:Pulse`` and so on. One module
+per device adds its graph and helpers: :mod:`~whexar.testing.bus` (the
+robot's emulated servos, a goal source), :mod:`~whexar.testing.sensors`,
+:mod:`~whexar.testing.imu`; :mod:`~whexar.testing.thesis` holds reference
+values of the thesis. The emulators themselves belong to their device
+packages (:mod:`whexar.bus.emulator`, :mod:`whexar.sensors.board_emulator`,
+:mod:`whexar.sensors.imu_emulator`): the actors open them by name.
+
+May import: :mod:`whexar.actors` and everything below it; never the
+benchmarks or the command line.
 """
 
 from whexar.testing.actors import InjectedFailure, Pulse, Relay, Sink

@@ -42,7 +42,7 @@ from whexar.errors import UsageError
 from whexar.robot import JOINT_NAMES
 from whexar.testing.bus import servo_chain
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "whexar.toml"
+CONFIG = Path(__file__).resolve().parents[2] / "config" / "whexar.toml"
 PH = PacketHandler(2.0)
 
 

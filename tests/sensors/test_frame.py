@@ -22,7 +22,7 @@ from whexar.sensors.frame import (
     encode_frame,
 )
 
-PROTOCOL = Path(__file__).resolve().parents[1] / "firmware" / "PROTOCOL.md"
+PROTOCOL = Path(__file__).resolve().parents[2] / "firmware" / "PROTOCOL.md"
 THESIS_FRAME = b"ir1=5;ir2=7;accx=0;accy=1;accz=2;fsr0=5;fsr1=7;fsr2=3;fsr3=2;fsr4=6;fsr5=8#"
 """The example frame of Žák 2023, 5.4, byte for byte."""
 

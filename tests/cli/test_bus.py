@@ -17,7 +17,7 @@ from whexar.cli import main
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CFG = RobotConfig()
 MODELS = {
     sid: CFG.joints.by_name(joint).model

@@ -40,7 +40,7 @@ from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.bus import bus_graph, servo_chain
 
 CFG = RobotConfig()
-FAULT_PLANS = Path(__file__).resolve().parent.parent / "config" / "faults"
+FAULT_PLANS = Path(__file__).resolve().parents[2] / "config" / "faults"
 TIBIA = JOINT_NAMES.index("tibia")
 TARSUS = JOINT_NAMES.index("tarsus")
 POSITIONING = frozenset(

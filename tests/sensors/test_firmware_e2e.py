@@ -35,7 +35,7 @@ from whexar.sensors.frame import Frame, FrameDecoder, Rejected
 from whexar.testing import run_actors
 from whexar.testing.sensors import sensor_graph
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 SIM = FIRMWARE / "build" / "whexar-sim"
 CFG = RobotConfig()

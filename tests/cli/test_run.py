@@ -10,7 +10,7 @@ from whexar.bench.runtime import run as bench_run
 from whexar.cli import main
 from whexar.runtime.supervisor import EXIT_ESCALATED
 
-DEMO = Path(__file__).resolve().parents[1] / "config" / "graphs" / "demo.toml"
+DEMO = Path(__file__).resolve().parents[2] / "config" / "graphs" / "demo.toml"
 
 
 def test_demo_graph_runs_on_virtual_time_and_stops_in_reverse_order(

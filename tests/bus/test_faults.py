@@ -21,7 +21,7 @@ from whexar.config import RobotConfig
 from whexar.errors import ConfigError
 from whexar.testing.bus import servo_chain
 
-FAULTS_DIR = Path(__file__).resolve().parents[1] / "config" / "faults"
+FAULTS_DIR = Path(__file__).resolve().parents[2] / "config" / "faults"
 
 
 # --------------------------------------------------------------------------- parsing
