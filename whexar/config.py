@@ -35,6 +35,7 @@ from typing import Annotated, Any, Final, Literal
 
 import numpy as np
 from pydantic import (
+    AfterValidator,
     Discriminator,
     Field,
     Tag,
@@ -60,6 +61,7 @@ from whexar.runtime.schema import (
     Positive,
     Section,
     format_path,
+    loads,
     problem_from_error,
     read_toml,
 )
@@ -815,3 +817,7 @@ def config_schema() -> dict[str, Any]:
 def default_geometry() -> LegGeometry:
     """The leg geometry of the thesis robot, ``RobotConfig().leg_geometry()``, made once."""
     return RobotConfig().leg_geometry()
+
+
+ConfigFile = Annotated[str, AfterValidator(loads(load_config, "a robot configuration"))]
+"""An actor parameter naming a robot configuration file, checked with the wiring."""

@@ -24,6 +24,7 @@ from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, servo_id
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed
+from whexar.runtime.wiring import WiringError
 from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.bus import bus_graph, servo_chain
 
@@ -333,12 +334,12 @@ def test_bad_bus_configuration_is_refused_before_any_byte(
     file.write_text(toml)
     seen: list[int] = []
     chain.hooks.append(lambda _c, _t, packets: seen.append(len(packets)))
-    result = run(graph({"config": str(file)}), duration=1.0)
-    failed = result.events(ActorFailed)
-    assert failed
-    assert failed[0].phase == "start"
-    assert path in failed[0].error
-    assert says in failed[0].error
+    # The file named in the params is checked with the wiring, before anything starts.
+    with pytest.raises(WiringError) as caught:
+        run(graph({"config": str(file)}), duration=1.0)
+    assert "actors.bus.params.config" in str(caught.value)
+    assert path in str(caught.value)
+    assert says in str(caught.value)
     assert seen == []  # nothing reached the bus
 
 

@@ -27,6 +27,7 @@ from whexar.actors.messages import (
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed, Event, TickOverrun
+from whexar.runtime.wiring import WiringError
 from whexar.sensors import lsm9ds1
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sensors.lsm9ds1 import Lsm9ds1, choose_odr, decode_xyz, settings
@@ -511,10 +512,11 @@ def test_unknown_fake_and_too_short_stale_window_are_refused(
     assert "no fake I²C bus registered as 'nope' (registered: test)" in failed[0].error
     config = tmp_path / "robot.toml"
     config.write_text("[imu]\nrate_hz = 10\nstale_after_s = 0.15\n")
-    result = run(duration=0.1, params={"config": str(config)})
-    failed = result.events(ActorFailed)
-    assert failed
-    assert "imu.stale_after_s = 0.15" in failed[0].error
+    # A bad configuration file is a wiring problem: refused before any actor starts.
+    with pytest.raises(WiringError) as caught:
+        run(duration=0.1, params={"config": str(config)})
+    assert "actors.imu.params.config" in str(caught.value)
+    assert "imu.stale_after_s = 0.15" in str(caught.value)
 
 
 def test_disabled_imu_stays_idle(chip: FakeLsm9ds1, tmp_path: Path) -> None:

@@ -69,6 +69,7 @@ from whexar.actors.messages import (
     ServoStates,
 )
 from whexar.bus import control_table as ct
+from whexar.bus.emulator.faults import FaultPlanFile
 from whexar.bus.plan import PlanRead, ReadPlan, resolve_plan
 from whexar.bus.protocol import ALERT, sync_read_bytes, sync_write_bytes
 from whexar.bus.sdk import (
@@ -83,7 +84,7 @@ from whexar.bus.sdk import (
     latency_timer_ms,
     open_port,
 )
-from whexar.config import RobotConfig, load_config
+from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
@@ -245,7 +246,7 @@ class BusScheduler(Actor):
     """Owns the servo port: reads per the plan, writes goals, recovers servos."""
 
     class Params(ActorParams):
-        config: str | None = None
+        config: ConfigFile | None = None
         """Robot configuration file; absent: the built-in defaults (= config/whexar.toml)."""
         port: str | None = None
         """Overrides ``bus.port``: a device, a pty, ``emulator`` or ``emulator:NAME``."""
@@ -253,7 +254,7 @@ class BusScheduler(Actor):
         """Overrides ``bus.plan``: a preset name or a plan table."""
         emulator_fast_sync_read: bool = False
         """For ``port = "emulator"``: whether the emulated servos answer Fast Sync Read."""
-        faults: str | None = None
+        faults: FaultPlanFile | None = None
         """For ``port = "emulator"``: a fault plan (TOML) applied to the emulated servos."""
         stats_period_s: float = Field(1.0, gt=0)
         """How often :class:`BusStats` is published."""

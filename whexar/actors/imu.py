@@ -63,7 +63,7 @@ from whexar.actors.messages import (
     SensorLinkStale,
     SensorLinkUp,
 )
-from whexar.config import RobotConfig, load_config
+from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
 from whexar.kinematics.sensing import tilt_from_acceleration
 from whexar.runtime.actor import Actor, ActorParams, Output
@@ -93,7 +93,7 @@ class ImuReader(Actor):
     """Reads the LSM9DS1 at ``imu.rate_hz``; publishes samples and body tilt, reports the link."""
 
     class Params(ActorParams):
-        config: str | None = None
+        config: ConfigFile | None = None
         """Robot configuration file; absent: the built-in defaults (``RobotConfig().imu``)."""
         bus: int | None = Field(None, ge=0)
         """Overrides ``imu.i2c_bus``: the N of ``/dev/i2c-N``."""

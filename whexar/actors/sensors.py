@@ -60,7 +60,7 @@ from whexar.actors.messages import (
     SensorLinkUp,
     SensorStats,
 )
-from whexar.config import RobotConfig, load_config
+from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import DeviceGoneError, UsageError
 from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
 from whexar.runtime.actor import Actor, ActorParams, Output
@@ -78,7 +78,7 @@ class SensorReader(Actor):
     """Reads the sensor board's frames and publishes typed sensor messages."""
 
     class Params(ActorParams):
-        config: str | None = None
+        config: ConfigFile | None = None
         """Robot configuration file; absent: the built-in defaults (= config/whexar.toml)."""
         port: str | None = None
         """Overrides ``sensor_board.port``: a device, a pty, ``emulator`` or ``emulator:NAME``."""

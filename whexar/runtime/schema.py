@@ -26,7 +26,7 @@ import re
 import tomllib
 import types
 import typing
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Self
 
@@ -65,6 +65,26 @@ class CheckedSection(Section):
         if found:
             raise ValueError("; ".join(str(p) for p in found))
         return self
+
+
+def loads(loader: Callable[[str], object], what: str) -> Callable[[str], str]:
+    """A validator for a key that names a file: ``loader`` must read it without a problem.
+
+    ``Annotated[str, AfterValidator(loads(load_config, "a robot configuration"))]``
+    makes a bad file one more problem of the document that names it (an
+    actor's params are checked with the wiring, before anything runs),
+    quoting the file's own problems.
+    """
+
+    def check(path: str) -> str:
+        try:
+            loader(path)
+        except ConfigError as exc:
+            found = "; ".join(str(p) for p in exc.problems)
+            raise ValueError(f"{what} without problems; {exc.source}: {found}") from None
+        return path
+
+    return check
 
 
 # --------------------------------------------------------------------------- key paths and problems

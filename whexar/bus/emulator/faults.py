@@ -85,12 +85,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Final, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import AfterValidator, Field, ValidationError
 
 from whexar.bus.control_table import HardwareError
 from whexar.bus.protocol import MAX_ID
 from whexar.errors import MISSING, ConfigError, Problem
-from whexar.runtime.schema import CheckedSection, Section, problem_from_error, read_toml
+from whexar.runtime.schema import CheckedSection, Section, loads, problem_from_error, read_toml
 
 if TYPE_CHECKING:
     from whexar.bus.emulator.chain import ServoChain
@@ -315,6 +315,10 @@ def parse_fault_plan(data: Mapping[str, Any], source: str = "<fault plan>") -> F
 def load_fault_plan(path: str | Path) -> FaultPlan:
     """Read and validate a TOML fault plan (``config/faults/*.toml``)."""
     return parse_fault_plan(read_toml(path), str(path))
+
+
+FaultPlanFile = Annotated[str, AfterValidator(loads(load_fault_plan, "a fault plan"))]
+"""An actor parameter naming a fault plan file, checked with the wiring."""
 
 
 # --------------------------------------------------------------------------- injection
