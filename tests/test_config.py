@@ -2,14 +2,17 @@
 
 import json
 import tomllib
+import typing
 from pathlib import Path
 from typing import Any
 
 import pytest
+from pydantic import BaseModel
 
 from whexar.cli import main
-from whexar.config import RobotConfig, config_schema, load_config, parse_config
+from whexar.config import BusSpec, RobotConfig, config_schema, load_config, parse_config
 from whexar.errors import ConfigError
+from whexar.sensors.usart import BOARD_BAUDRATES, usart_setting
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "whexar.toml"
 
@@ -76,10 +79,14 @@ def test_field_errors_and_section_relations_are_reported_together() -> None:
 
 def test_missing_key_and_bad_name() -> None:
     data = _data()
-    del data["servo_models"]["MX-28"]["mass_g"]
+    data["stances"]["crouch sideways"] = {"reach_mm": 200.0}  # a new stance needs its keys
+    del data["legs"][3]["mount_mm"]  # an array item replaces the default whole
     data["legs"][2]["name"] = "XX"
     found = _problems(data)
-    assert found['servo_models."MX-28".mass_g'].endswith("(missing): required key is missing")
+    assert found['stances."crouch sideways".height_mm'].endswith(
+        "(missing): required key is missing"
+    )
+    assert "required key is missing" in found["legs[3].mount_mm"]
     assert "'XX'" in found["legs[2].name"]
 
 
@@ -110,13 +117,13 @@ def test_legs_must_be_the_six_in_thesis_order() -> None:
 
 def test_endless_joint_and_protocol() -> None:
     data = _data()
-    data["joints"]["wheel"]["min_deg"] = -10.0
-    data["joints"]["coxa"]["endless"] = False
-    del data["joints"]["coxa"]["max_deg"]
+    data["joints"]["coxa"]["endless"] = True  # its limits stay: a file cannot delete keys
+    data["joints"]["wheel"]["endless"] = False  # and the wheel's are absent by default
+    data["joints"]["wheel"]["max_deg"] = 10.0
     data["bus"]["protocol"] = 1.0
     found = _problems(data)
-    assert "endless joint has no limits" in found["joints.wheel.min_deg"]
-    assert "required unless endless" in found["joints.coxa.max_deg"]
+    assert "endless joint has no limits" in found["joints.coxa.min_deg"]
+    assert "required unless endless" in found["joints.wheel.min_deg"]
     assert "Protocol 2.0" in found["bus.protocol"]
 
 
@@ -153,3 +160,199 @@ def test_schema(capsys: pytest.CaptureFixture[str]) -> None:
     assert schema == json.loads(json.dumps(config_schema()))
     assert {"legs", "joints", "dh", "bus", "gait_selector", "stances"} <= set(schema["properties"])
     assert schema["additionalProperties"] is False
+
+
+# --------------------------------------------------------------------------- partial files
+
+
+def _load(tmp_path: Path, text: str) -> RobotConfig:
+    path = tmp_path / "robot.toml"
+    path.write_text(text)
+    return load_config(path)
+
+
+def _load_problems(tmp_path: Path, text: str) -> dict[str, str]:
+    path = tmp_path / "robot.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    return {p.path: str(p) for p in info.value.problems}
+
+
+def test_a_file_needs_only_the_keys_it_changes(tmp_path: Path) -> None:
+    cfg = _load(tmp_path, "[joints.femur]\nmin_deg = -100\n")
+    default = RobotConfig()
+    assert cfg.joints.femur.min_deg == -100
+    assert cfg.joints.femur.model == default.joints.femur.model == "MX-106"
+    assert cfg.joints.femur.max_deg == default.joints.femur.max_deg
+    assert cfg.joints.femur.length_mm == default.joints.femur.length_mm
+    assert cfg.joints.tibia == default.joints.tibia
+    assert cfg.model_copy(update={"joints": default.joints}) == default
+    assert _load(tmp_path, "") == default
+    deep = _load(tmp_path, "[sensor_board.accelerometer]\nfitted = true\n")
+    assert deep.sensor_board.accelerometer.fitted is True
+    assert deep.sensor_board.accelerometer.counts_per_g == (67.5, 67.5, 67.5)
+    assert deep.sensor_board.port == "/dev/ttyACM0"
+
+
+def test_mapping_sections_merge_by_key(tmp_path: Path) -> None:
+    cfg = _load(
+        tmp_path,
+        "[stances.crouch]\nreach_mm = 230.0\nheight_mm = 220.0\n"
+        "[stances.high]\nheight_mm = 370.0\n"
+        '[servo_models."MX-64"]\nmass_g = 140.0\n',
+    )
+    default = RobotConfig()
+    assert set(cfg.stances) == {*default.stances, "crouch"}  # added, none lost
+    assert cfg.stances["crouch"].front_rear_yaw_deg == 0.0
+    assert cfg.stances["high"].height_mm == 370.0
+    assert cfg.stances["high"].reach_mm == default.stances["high"].reach_mm  # partly changed
+    assert cfg.stances["high"].front_rear_yaw_deg == 25.0
+    assert cfg.stances["low"] == default.stances["low"]
+    assert cfg.servo_models["MX-64"].mass_g == 140.0
+    assert cfg.servo_models["MX-64"].stall_torque_nm == 6.0
+
+
+def test_arrays_replace_the_default_whole(tmp_path: Path) -> None:
+    one_leg = '[[legs]]\nname = "RF"\nmount_mm = [300.0, -74.0, 0.0]\n'
+    one_leg += "servo_ids = [1, 2, 3, 4, 5, 6, 7]\n"
+    found = _load_problems(tmp_path, one_leg)
+    assert "exactly six legs" in found["legs"]
+    cfg = _load(tmp_path, "[sensor_board.accelerometer]\nzero_g_counts = [330.0, 340.0, 350.0]\n")
+    assert cfg.sensor_board.accelerometer.zero_g_counts == (330.0, 340.0, 350.0)
+    found = _load_problems(tmp_path, "[sensor_board.accelerometer]\ncounts_per_g = [67.5]\n")
+    assert set(found) == {  # not padded from the default: the array is the file's
+        "sensor_board.accelerometer.counts_per_g[1]",
+        "sensor_board.accelerometer.counts_per_g[2]",
+    }
+
+
+def test_partial_files_keep_every_problem_with_its_key_path(tmp_path: Path) -> None:
+    # Relations between a file's keys and the defaults it did not write.
+    found = _load_problems(
+        tmp_path,
+        "[joints.femur]\nmin_deg = 130\n"  # above the default max_deg
+        "[dh.tibia]\na_mm = 150.0\n"  # against the default segment length
+        "[fsr]\ncontact_off_counts = 250\n"  # against the default contact_on_counts
+        "[gait_selector.ripple]\nmax_tilt_deg = 10.0\n"  # below tetrapod's default
+        "[stances.tall]\nreach_mm = 100.0\nheight_mm = 500.0\n",  # unreachable
+    )
+    assert (
+        "joints.femur.min_deg = 130.0: must be below max_deg (120)" in found["joints.femur.min_deg"]
+    )
+    assert "joints.tibia.length_mm (124 mm" in found["dh.tibia.a_mm"]
+    assert "hysteresis" in found["fsr.contact_off_counts"]
+    assert "at least tetrapod's 25" in found["gait_selector.ripple.max_tilt_deg"]
+    assert set(found) == {
+        "joints.femur.min_deg",
+        "dh.tibia.a_mm",
+        "fsr.contact_off_counts",
+        "gait_selector.ripple.max_tilt_deg",
+    }  # the stance check waits for valid joints: limits it could not trust
+    found = _load_problems(tmp_path, "[stances.tall]\nreach_mm = 100.0\nheight_mm = 500.0\n")
+    assert "reach within its joint limits" in found["stances.tall"]
+    # A bad key still leaves the other sections' relations checked.
+    found = _load_problems(tmp_path, "[joints.femur]\nsize = 3\n[fsr]\ncontact_off_counts = 250\n")
+    assert "unknown key; allowed here: model, min_deg" in found["joints.femur.size"]
+    assert "hysteresis" in found["fsr.contact_off_counts"]
+
+
+def test_the_schema_follows_the_merge_rule() -> None:
+    schema = config_schema()
+    defs = schema["$defs"]
+
+    def target(node: dict[str, Any]) -> dict[str, Any]:
+        ref = node.get("$ref")
+        return defs[ref.rsplit("/", 1)[-1]] if ref else node
+
+    joints = target(schema["properties"]["joints"])
+    femur = target(joints["properties"]["femur"])
+    assert "required" not in femur  # [joints.femur] with only min_deg is a valid file
+    assert set(femur["properties"]) == {"model", "min_deg", "max_deg", "endless", "length_mm"}
+    stances = schema["properties"]["stances"]
+    assert "required" not in target(stances["properties"]["high"])  # a preset, partly changed
+    assert set(target(stances["additionalProperties"])["required"]) == {"reach_mm", "height_mm"}
+    leg = target(schema["properties"]["legs"]["items"])
+    assert set(leg["required"]) == {"name", "mount_mm", "servo_ids"}  # array items: whole
+    assert not [name for name, d in defs.items() if name.endswith("Partial") and "required" in d]
+
+
+def test_shipped_file_spells_out_every_key() -> None:
+    # Merging would hide a key missing from the documented file; it may leave out
+    # only keys at their model's own default (endless = false, theta_sign = 1…),
+    # as it could before files were merged.
+    def omitted(model: BaseModel, table: dict[str, Any], at: str) -> list[str]:
+        found = []
+        for name, field in type(model).model_fields.items():
+            value = getattr(model, name)
+            path = f"{at}.{name}" if at else name
+            if name not in table:
+                if field.is_required() or value != field.get_default(call_default_factory=True):
+                    found.append(path)
+            elif isinstance(value, BaseModel):
+                found += omitted(value, table[name], path)
+            elif isinstance(value, dict):
+                for key, item in value.items():
+                    if isinstance(item, BaseModel):
+                        found += omitted(item, table[name].get(key, {}), f"{path}.{key}")
+        return found
+
+    assert omitted(RobotConfig(), _data(), "") == []
+
+
+# --------------------------------------------------------------------------- device limits
+
+
+def test_sensor_board_baudrate_is_a_rate_the_board_runs_at(tmp_path: Path) -> None:
+    assert BOARD_BAUDRATES == (76800, 250_000, 500_000, 1_000_000, 2_000_000)
+    for rate in BOARD_BAUDRATES:
+        assert _load(tmp_path, f"[sensor_board]\nbaudrate = {rate}\n").sensor_board.baudrate == rate
+    cases = {
+        115200: "(U2X, UBRR = 16) gives 117647 bps, +2.1 %",
+        57600: "(normal speed, UBRR = 16) gives 58824 bps, +2.1 %",
+        230400: "-3.5 %",
+        38400: "too slow for 127-byte frames at 50 Hz (63500 bps)",
+        1_000_001: "not one of the datasheet's rates",
+        0: "not a rate",
+    }
+    for rate, why in cases.items():
+        found = _load_problems(tmp_path, f"[sensor_board]\nbaudrate = {rate}\n")
+        problem = found["sensor_board.baudrate"]
+        assert f"sensor_board.baudrate = {rate}" in problem
+        assert "76800, 250000, 500000, 1000000, 2000000" in problem
+        assert why in problem, problem
+
+
+def test_usart_rule_matches_the_datasheet_table() -> None:
+    # ATmega2560 datasheet, Table 22-12 (16 MHz): UBRR and error with U2X = 1.
+    table = {
+        2400: (832, 0.0),
+        9600: (207, 0.2),
+        28800: (68, 0.6),
+        76800: (25, 0.2),
+        115200: (16, 2.1),
+        230400: (8, -3.5),
+        250000: (7, 0.0),
+        1_000_000: (1, 0.0),
+        2_000_000: (0, 0.0),
+    }
+    for rate, (ubrr, error_pct) in table.items():
+        setting = usart_setting(rate)
+        assert setting.u2x
+        assert (setting.ubrr, round(100 * setting.error, 1)) == (ubrr, error_pct)
+    # The Arduino core forces normal speed for 57600 at 16 MHz: UBRR 16, +2.1 %
+    # (U2X = 0 column), where U2X with UBRR 34 would give -0.8 %.
+    s57 = usart_setting(57600)
+    assert (s57.u2x, s57.ubrr, round(100 * s57.error, 1), s57.ok) == (False, 16, 2.1, False)
+
+
+def test_servo_bus_baudrates_are_the_mx_rates_the_sdk_can_set() -> None:
+    # MX (2.0) Baud Rate register (8): 9600, 57600, 115200, 1M, 2M, 3M, 4M, 4.5M
+    # (ROBOTIS e-manual). dynamixel-sdk's setBaudRate accepts all but 4.5M.
+    from dynamixel_sdk import PortHandler
+
+    mx2 = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+    sdk = PortHandler("/dev/null")
+    usable = {rate for rate in mx2 if sdk.getCFlagBaud(rate) > 0}
+    allowed = set(typing.get_args(BusSpec.model_fields["baudrate"].annotation))
+    assert allowed == usable == set(mx2) - {4_500_000}

@@ -11,7 +11,11 @@ Unit rule: the file names every unit in its keys (``_mm``, ``_deg``, ``_g``,
 kinematics never reads the configuration; the configuration calls it to
 check that every stance preset is reachable.
 
-Validation runs in two layers, so that one bad key never hides another:
+A file needs only the keys it changes: :func:`merge_defaults` merges it into
+``RobotConfig()`` first — tables key by key, recursively (mapping-valued
+sections such as ``stances`` too, so a stance can be added or partly
+changed), arrays (``legs``) whole. Then validation runs on the merged
+document in two layers, so that one bad key never hides another:
 
 1. per key — types, ranges, allowed values, unknown keys (pydantic);
 2. relations — servo IDs unique, limits ordered, DH lengths consistent with
@@ -25,6 +29,7 @@ Validation runs in two layers, so that one bad key never hides another:
 
 from __future__ import annotations
 
+import copy
 import functools
 import itertools
 import math
@@ -65,6 +70,8 @@ from whexar.runtime.schema import (
     problem_from_error,
     read_toml,
 )
+from whexar.sensors.gravity import GRAVITY_TOLERANCE_G
+from whexar.sensors.usart import baudrate_problem
 
 ServoModelName = Literal["MX-28", "MX-64", "MX-106"]
 
@@ -337,6 +344,14 @@ class BusSpec(Section):
     """How often a degraded servo is pinged to see whether it is back."""
     torque_retries: int = Field(default=3, ge=1)
     """Attempts to enable a servo's torque at start-up and after a reboot."""
+    watchdog_ms: int = Field(default=100, ge=0, le=2540, multiple_of=20)
+    """Bus Watchdog (98): a servo under torque stops when the host has sent it nothing for
+    this long — after a crash, a kill or a pulled cable the wheels stop. 0 turns it off.
+    The register counts 20 ms units, 1–127 (e-manual); the scheduler addresses every servo
+    at least twice per period."""
+    boot_timeout_s: float = Field(default=1.5, gt=0, le=10, allow_inf_nan=False)
+    """How long a servo may take to answer after a Reboot or a power-up (about 0.4 s
+    measured) before it counts as lost."""
 
     @field_validator("plan")
     @classmethod
@@ -353,25 +368,63 @@ class BusSpec(Section):
         return value
 
 
+def board_baudrate(rate: int) -> int:
+    """Check a sensor-board rate: one the ATmega2560 at 16 MHz runs at, as its firmware sets it.
+
+    The rule, from the ATmega2560 datasheet's USART baud-rate tables (Atmel 2549Q,
+    Table 22-12 for 16 MHz; ±2 % recommended receiver error for 8-bit frames,
+    Table 22-2) and the Arduino core's choice of U2X and UBRR in ``Serial.begin``,
+    is :mod:`whexar.sensors.usart`: the rate the USART actually produces must be
+    within ±2 % of the one asked for, with U2X or without as the core picks it —
+    which leaves out 115200 (+2.1 %) and 57600 bps (+2.1 %, normal speed forced) —
+    and it must carry the firmware's longest frame at 50 frames/s (63.5 kbps).
+    The firmware's ``BAUD`` build option is checked by the same rule, so every
+    rate allowed here is one the firmware can be built for:
+    76800, 250000, 500000, 1000000 and 2000000 bps.
+    """
+    problem = baudrate_problem(rate)
+    if problem is not None:
+        raise ValueError(problem)
+    return rate
+
+
+BoardBaudrate = Annotated[int, AfterValidator(board_baudrate)]
+"""A serial rate of the sensor board (:func:`board_baudrate`)."""
+
+GravityTolerance = Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)]
+"""How far from 1 g an accelerometer reading may be and still give a tilt (under 1 g, or
+free fall would pass); :mod:`whexar.sensors.gravity` explains the default."""
+
+
 class AccelerometerSpec(Section):
     """The board's optional analog accelerometer (``accx/accy/accz``), read in ADC counts.
 
-    Defaults: an ADXL335 on 3.3 V read against the 5 V reference. Its zero-g
-    output is half its supply and its sensitivity is ratiometric, 300 mV/g at
-    3 V (ADXL335 datasheet, Rev. B), so 1.65 V = 337.6 counts and 330 mV/g =
-    67.5 counts/g.
+    ``fitted``: whether the board has one. The thesis names none — body tilt
+    comes from the LSM9DS1 on the Pi (5.3.4, 5.4) — so by default it is not
+    fitted, and the firmware's default build (``WITH_ACCEL=0``) does not send
+    ``acc*``. When frames carry them anyway (a ``WITH_ACCEL=1`` build, a thesis
+    frame), the reader shows the counts but makes no tilt of them.
+
+    Calibration defaults: an ADXL335 on 3.3 V read against the 5 V reference.
+    Its zero-g output is half its supply and its sensitivity is ratiometric,
+    300 mV/g at 3 V (ADXL335 datasheet, Rev. B), so 1.65 V = 337.6 counts and
+    330 mV/g = 67.5 counts/g.
     """
 
+    fitted: bool = False
     zero_g_counts: tuple[Finite, Finite, Finite] = (337.6, 337.6, 337.6)
     counts_per_g: tuple[Positive, Positive, Positive] = (67.5, 67.5, 67.5)
+    gravity_tolerance_g: GravityTolerance = GRAVITY_TOLERANCE_G
+    """A reading whose magnitude is further than this from 1 g gives no tilt."""
 
 
 class SensorBoardSpec(Section):
     """The ATmega2560 sensor board on its serial line (5.4, 6.1.2, 6.1.5)."""
 
     port: str = Field(default="/dev/ttyACM0", min_length=1)
-    baudrate: int = Field(default=1_000_000, gt=0)
-    """1 Mbps with U2X on the 16 MHz board (5.4)."""
+    baudrate: BoardBaudrate = 1_000_000
+    """1 Mbps (5.4): U2X, UBRR = 1 on the 16 MHz board, exact. Must be a rate the firmware can
+    run at (:data:`~whexar.sensors.usart.BOARD_BAUDRATES`, :func:`board_baudrate`)."""
     sample_rate_hz: Positive = 50.0
     """ADC sampling of the IR and FSR inputs (6.1.2, 6.1.5)."""
     frame_rate_hz: float = Field(default=20.0, ge=10.0, le=50.0, allow_inf_nan=False)
@@ -380,7 +433,8 @@ class SensorBoardSpec(Section):
     """``checked``: frames must carry ``seq`` and ``crc``; ``thesis``: the plain 5.4 frame
     is accepted too (firmware/PROTOCOL.md)."""
     stale_after_frames: float = Field(default=3.0, ge=1.0, allow_inf_nan=False)
-    """The link is stale when no valid frame arrived for this many frame periods."""
+    """The link is stale when no valid frame arrived for this many frame periods after one
+    did: a connection's silence before its first frame (the board's boot) is not staleness."""
     reconnect_period_s: Positive = 0.5
     """How often a vanished serial device is looked for again."""
     accelerometer: AccelerometerSpec = AccelerometerSpec()
@@ -469,6 +523,8 @@ class ImuSpec(Section):
     """Gyroscope full scale (LSM9DS1 datasheet, Table 3)."""
     stale_after_s: Positive = 0.1
     """The IMU link is stale when no sample was read for this long."""
+    gravity_tolerance_g: GravityTolerance = GRAVITY_TOLERANCE_G
+    """A sample whose acceleration is further than this from 1 g gives no tilt."""
 
     def problems(self, at: str) -> list[Problem]:
         # One late sample must not read as a stale link (whexar.actors.imu).
@@ -768,11 +824,49 @@ _CROSS_CHECKS: Final[tuple[Callable[[RobotConfig], list[Problem]], ...]] = (
 # --------------------------------------------------------------------------- loading
 
 
+@functools.cache
+def _defaults() -> dict[str, Any]:
+    """``RobotConfig()`` as a document: what a file's keys are merged into."""
+    return RobotConfig().model_dump(mode="python")
+
+
+def _merge(default: object, given: object) -> object:
+    """``given`` over ``default``: tables merge key by key, recursively; anything else replaces."""
+    if isinstance(default, Mapping) and isinstance(given, Mapping):
+        merged = {key: copy.deepcopy(value) for key, value in default.items()}
+        for key, value in given.items():
+            merged[key] = _merge(default[key], value) if key in default else value
+        return merged
+    return given
+
+
+def merge_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A configuration document completed with the defaults of ``RobotConfig()``.
+
+    The merge rule: a table merges with the default table key by key,
+    recursively, so a file names only the keys it changes
+    (``[joints.femur]`` with ``min_deg = -100`` keeps the femur's model, limit
+    and length). Mapping-valued sections are tables too: ``[stances.crouch]``
+    adds a stance next to the presets, ``[stances.high]`` with one key changes
+    that key of the preset, and likewise ``[servo_models."MX-64"]``. An array —
+    ``legs``, ``mount_mm``, ``zero_g_counts`` — replaces the default whole, as
+    does a value whose type differs from the default's (``bus.plan``: a preset
+    name or a table). Nothing can be deleted: a key the defaults have stays.
+    An unknown key stays unknown and is reported as such.
+    """
+    merged = _merge(_defaults(), data)
+    assert isinstance(merged, dict)
+    return merged
+
+
 def parse_config(data: Mapping[str, Any], source: str = "<config>") -> RobotConfig:
     """Validate a configuration document (as parsed from TOML) into a :class:`RobotConfig`.
 
-    Raises :class:`~whexar.errors.ConfigError` listing every problem found.
+    The document needs only the keys it changes: it is merged with the
+    defaults first (:func:`merge_defaults`). Raises
+    :class:`~whexar.errors.ConfigError` listing every problem found.
     """
+    data = merge_defaults(data)
     try:
         cfg = RobotConfig.model_validate(data, context={"defer_relations": True})
     except ValidationError as exc:
@@ -807,10 +901,59 @@ def load_config(path: str | Path) -> RobotConfig:
 
 
 def config_schema() -> dict[str, Any]:
-    """JSON Schema of the configuration file, for editors."""
+    """JSON Schema of the configuration file, for editors.
+
+    It follows the merge rule (:func:`merge_defaults`): inside a table that
+    has a default no key is required, and so on down; the presets of a
+    mapping-valued section (``stances``, ``servo_models``) are listed with
+    nothing required, while a new entry (a new stance) and an array item (a
+    leg) must be complete.
+    """
     schema = RobotConfig.model_json_schema()
-    schema["title"] = "WHexaR robot configuration"
-    return schema
+    defs: dict[str, Any] = schema.get("$defs", {})
+    partial = _partial(schema, _defaults(), defs)
+    partial["title"] = "WHexaR robot configuration"
+    # Keep only the definitions still referred to (a section's full form is
+    # not, once its relaxed form took its place).
+    used: set[str] = set()
+    todo: list[object] = [{k: v for k, v in partial.items() if k != "$defs"}]
+    while todo:
+        item = todo.pop()
+        if isinstance(item, dict):
+            ref = item.get("$ref")
+            if isinstance(ref, str) and (name := ref.rsplit("/", 1)[-1]) not in used:
+                used.add(name)
+                todo.append(defs[name])
+            todo.extend(item.values())
+        elif isinstance(item, list):
+            todo.extend(item)
+    partial["$defs"] = {name: value for name, value in defs.items() if name in used}
+    return partial
+
+
+def _partial(node: dict[str, Any], default: object, defs: dict[str, Any]) -> dict[str, Any]:
+    """``node``'s schema for a value merged into ``default``: see :func:`config_schema`."""
+    if not isinstance(default, Mapping):
+        return node
+    ref = node.get("$ref")
+    target = defs[ref.rsplit("/", 1)[-1]] if isinstance(ref, str) else node
+    if "properties" in target:
+        relaxed = {key: value for key, value in target.items() if key != "required"}
+        relaxed["properties"] = {
+            key: _partial(value, default.get(key), defs)
+            for key, value in target["properties"].items()
+        }
+    elif isinstance(target.get("additionalProperties"), dict):
+        item = target["additionalProperties"]
+        relaxed = dict(target)
+        relaxed["properties"] = {key: _partial(item, value, defs) for key, value in default.items()}
+    else:
+        return node
+    if not isinstance(ref, str):
+        return relaxed
+    name = f"{ref.rsplit('/', 1)[-1]}Partial"
+    defs[name] = relaxed
+    return {**{k: v for k, v in node.items() if k != "$ref"}, "$ref": f"#/$defs/{name}"}
 
 
 @functools.cache

@@ -590,6 +590,14 @@ int main(int argc, char **argv) {
          sim_s, wall_s, wall_s > 0 ? sim_s / wall_s : 0.0, (unsigned long long)tx_bytes,
          (unsigned long long)tx_frames, (unsigned long long)rx_bytes,
          state == cpu_Crashed ? " (firmware crashed)" : "");
+    if (uart0) {
+        // The rate the firmware programmed: F_CPU / (8 or 16 (UBRR + 1)), datasheet Table 22-1.
+        unsigned ubrr = (unsigned)avr_regbit_get(avr, uart0->ubrrl) |
+                        ((unsigned)avr_regbit_get(avr, uart0->ubrrh) << 8);
+        unsigned u2x = avr_regbit_get(avr, uart0->u2x) ? 1u : 0u;
+        info("uart0: %.0f bps (U2X=%u, UBRR=%u)\n",
+             (double)F_CPU_HZ / ((u2x ? 8.0 : 16.0) * (ubrr + 1)), u2x, ubrr);
+    }
     if (tx_dropped) info("%llu bytes dropped (no pty reader)\n", (unsigned long long)tx_dropped);
     if (pty_slave >= 0) close(pty_slave);
     if (pty_master >= 0) close(pty_master);

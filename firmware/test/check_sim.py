@@ -5,8 +5,9 @@ Standard library only. Checks, against PROTOCOL.md: every byte belongs to a
 well-formed frame, seq counts from 0 by one, the CRC is right, constant inputs
 read exactly their ADC value, the trimmed-mean step response, a one-sample spike
 never shows, the frame rate in simulated time, `rate=N#` (and garbage that must
-be ignored), the WITH_ACCEL=0 layout, the pty link in real time, and a clean
-exit on SIGTERM.
+be ignored), the layouts with and without the accelerometer (WITH_ACCEL), the
+serial rate the firmware programs (BAUD), the pty link in real time, and a
+clean exit on SIGTERM.
 """
 
 import argparse
@@ -218,7 +219,8 @@ def test_main(args: argparse.Namespace) -> None:
     print(f"  {what}: {len(frames)} frames, {len(data)} bytes, {sim_s / wall:.0f}x real time")
 
 
-def test_noaccel(args: argparse.Namespace) -> None:
+def test_variant(args: argparse.Namespace) -> None:
+    """The WITH_ACCEL=1 layout, built at 50 Hz and 2 Mbps (Makefile target accel)."""
     mv = {
         "ir1": 100,
         "ir2": 200,
@@ -229,13 +231,15 @@ def test_noaccel(args: argparse.Namespace) -> None:
         "fsr4": 700,
         "fsr5": 800,
         "accx": 2000,
+        "accy": 1650,
+        "accz": 1980,
     }
     end = 510
-    data, _ = run_sim(args, mv, [], end, elf=args.noaccel_elf)
-    what = "WITH_ACCEL=0, 50 Hz run"
+    data, _ = run_sim(args, mv, [], end, elf=args.accel_elf)
+    what = "WITH_ACCEL=1, 50 Hz run"
     frames = parse_frames(data, what)
     check_seq(frames, what)
-    keys = ["ir1", "ir2", *FSR_KEYS]
+    keys = ["ir1", "ir2", *ACCEL_KEYS, *FSR_KEYS]
     for seq, fields in frames:
         check(list(fields) == keys, f"{what}: seq {seq} keys {list(fields)}")
         check(
@@ -244,6 +248,25 @@ def test_noaccel(args: argparse.Namespace) -> None:
         )
     check_count(frames, frame_times(20.0, None, None, end), end, what)
     print(f"  {what}: {len(frames)} frames")
+
+
+def uart_bps(elf: str, args: argparse.Namespace) -> int | None:
+    """The rate the firmware programmed into USART0, from the harness's summary."""
+    proc = subprocess.run(
+        [args.sim, "--elf", elf, "--stdout", "--duration-ms", "50"],
+        capture_output=True,
+        timeout=60,
+    )
+    m = re.search(rb"uart0: (\d+) bps", proc.stderr)
+    return int(m.group(1)) if m else None
+
+
+def test_baud(args: argparse.Namespace) -> None:
+    """BAUD reaches the USART exactly as Serial.begin() sets it (serial_baud.h)."""
+    for elf, want in ((args.elf, args.baud), (args.accel_elf, 2_000_000)):
+        got = uart_bps(elf, args)
+        check(got == want, f"baud: {elf} programs {got} bps, expected {want}")
+    print(f"  baud: {args.baud} bps (main build), 2000000 bps (variant)")
 
 
 def test_pty(args: argparse.Namespace) -> None:
@@ -333,13 +356,19 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--sim", required=True)
     ap.add_argument("--elf", required=True)
-    ap.add_argument("--noaccel-elf", required=True, help="built with WITH_ACCEL=0 FRAME_RATE_HZ=50")
+    ap.add_argument(
+        "--accel-elf",
+        required=True,
+        help="built with WITH_ACCEL=1 FRAME_RATE_HZ=50 BAUD=2000000 (the other layout)",
+    )
     ap.add_argument("--rate", type=int, default=20, help="FRAME_RATE_HZ of --elf")
-    ap.add_argument("--accel", type=int, default=1, help="WITH_ACCEL of --elf")
+    ap.add_argument("--accel", type=int, default=0, help="WITH_ACCEL of --elf")
+    ap.add_argument("--baud", type=int, default=1_000_000, help="BAUD of --elf")
     args = ap.parse_args()
     print("simulation tests:")
     test_main(args)
-    test_noaccel(args)
+    test_variant(args)
+    test_baud(args)
     test_pty(args)
     test_sigterm(args)
     if failures:

@@ -1,11 +1,13 @@
 // Host unit tests of the firmware's portable parts: the trimmed-mean filter,
-// the frame encoder with its CRC, and the `rate=N#` parser (PROTOCOL.md).
+// the frame encoder with its CRC, the `rate=N#` parser (PROTOCOL.md), and the
+// serial-rate rule of serial_baud.h.
 #include <stdio.h>
 #include <string.h>
 
 #include "board_config.h"
 #include "frame.h"
 #include "sensor_filter.h"
+#include "serial_baud.h"
 
 static int failures;
 static int checks;
@@ -266,6 +268,64 @@ static void test_rate_command() {
     CHECK_STR(got, "33");
 }
 
+// ------------------------------------------------------------ serial rate
+
+// The defaults build.
+static_assert(baud_supported(16000000UL, SERIAL_BAUD, FRAME_LONGEST_BYTES, FRAME_RATE_MAX_HZ),
+              "the default BAUD passes its own rule");
+
+static void test_longest_frame() {
+    // FRAME_LONGEST_BYTES is what frame_encode writes at the longest values,
+    // with and without the accelerometer (board_config.h).
+    static const char *const no_acc[] = {"ir1", "ir2", "fsr0", "fsr1", "fsr2", "fsr3", "fsr4",
+                                         "fsr5"};
+    const uint16_t v[] = {1023, 1023, 1023, 1023, 1023, 1023, 1023, 1023, 1023, 1023, 1023};
+    char buf[FRAME_BUF_SIZE];
+    size_t with = frame_encode(buf, sizeof buf, 65535, kAllKeys, v, 11);
+    size_t without = frame_encode(buf, sizeof buf, 65535, no_acc, v, 8);
+    CHECK_EQ(with, 127);    // whexar.sensors.usart.LONGEST_FRAME_BYTES
+    CHECK_EQ(without, 97);
+    CHECK_EQ(FRAME_LONGEST_BYTES, WITH_ACCEL ? with : without);
+}
+
+static void test_baud_rule() {
+    // Every rate of the datasheet's table at 16 MHz (Table 22-12) and its
+    // 2 Mbps maximum: (rate, UBRR and U2X as Serial.begin() sets them, passes).
+    struct Row {
+        uint32_t baud;
+        uint32_t ubrr;
+        bool u2x;
+        bool ok;
+    };
+    const Row rows[] = {
+        {2400, 832, true, false},     // within 2 %, but too slow for the frames
+        {4800, 416, true, false},     {9600, 207, true, false},
+        {14400, 138, true, false},    {19200, 103, true, false},
+        {28800, 68, true, false},     {38400, 51, true, false},
+        {57600, 16, false, false},    // normal speed forced: +2.1 %
+        {76800, 25, true, true},      // +0.2 %
+        {115200, 16, true, false},    // +2.1 %
+        {230400, 8, true, false},     // -3.5 %
+        {250000, 7, true, true},      {500000, 3, true, true},
+        {1000000, 1, true, true},     {2000000, 0, true, true},
+    };
+    for (const Row &r : rows) {
+        CHECK_EQ(usart_ubrr(16000000UL, r.baud), r.ubrr);
+        CHECK_EQ(usart_u2x(16000000UL, r.baud), r.u2x);
+        CHECK_EQ(baud_supported(16000000UL, r.baud, 127, FRAME_RATE_MAX_HZ), r.ok);
+    }
+    // The USART alone: the slow rates are fine, 57600/115200/230400 are not.
+    CHECK(usart_within_2pct(16000000UL, 9600));
+    CHECK(usart_within_2pct(16000000UL, 28800));  // +0.6 %
+    CHECK(!usart_within_2pct(16000000UL, 57600));
+    CHECK(!usart_within_2pct(16000000UL, 115200));
+    CHECK(!usart_within_2pct(16000000UL, 3000000));  // above f / 8
+    CHECK(!usart_within_2pct(16000000UL, 0));
+    // The frames: 127 bytes at 50 Hz need 63.5 kbps.
+    CHECK(baud_carries_frames(63500, 127, 50));
+    CHECK(!baud_carries_frames(63499, 127, 50));
+}
+
 int main() {
     test_filter_start_and_constant();
     test_filter_spike_never_shows();
@@ -276,6 +336,8 @@ int main() {
     test_frame_without_accel_and_extremes();
     test_frame_bounds();
     test_rate_command();
+    test_longest_frame();
+    test_baud_rule();
     if (failures) {
         fprintf(stderr, "host tests: %d of %d checks FAILED\n", failures, checks);
         return 1;

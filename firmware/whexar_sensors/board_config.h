@@ -14,7 +14,7 @@
 #define PIN_FSR3 5
 #define PIN_FSR4 6
 #define PIN_FSR5 7
-#define PIN_ACCX 8  // A8..A10: optional analog accelerometer
+#define PIN_ACCX 8  // A8..A10: optional analog accelerometer (WITH_ACCEL=1)
 #define PIN_ACCY 9
 #define PIN_ACCZ 10
 
@@ -33,13 +33,23 @@
 #error "FRAME_RATE_HZ must be 10..50"
 #endif
 
-// 1: sample A8..A10 and send accx/accy/accz; 0: omit them.
+// 1: sample A8..A10 and send accx/accy/accz; 0 (default): omit them. The
+// thesis names no analog accelerometer -- body tilt comes from the IMU on the
+// Raspberry Pi (5.3.4, 5.4) -- and an unfitted one's open inputs would read as
+// a bogus acceleration. whexar's sensor_board.accelerometer.fitted agrees.
 #ifndef WITH_ACCEL
-#define WITH_ACCEL 1
+#define WITH_ACCEL 0
 #endif
 
-// 1 Mbps 8N1 (thesis 5.4). At 16 MHz the Arduino core picks U2X with
-// UBRR = 1: 16 MHz / (8 * (1 + 1)) = 1 Mbps exactly (datasheet 22.3.1).
+// 1 Mbps 8N1 by default (thesis 5.4). At 16 MHz the Arduino core picks U2X
+// with UBRR = 1: 16 MHz / (8 * (1 + 1)) = 1 Mbps exactly (datasheet 22.3.1).
+// The build option BAUD sets another rate; serial_baud.h says which pass.
+#ifndef SERIAL_BAUD
 #define SERIAL_BAUD 1000000UL
+#endif
+
+// The longest frame this build sends, '#' included: "seq=65535;", 4-digit
+// values ("ir1=1023;" 9 bytes, "accx=1023;" and "fsr0=1023;" 10), "crc=XXXX#".
+#define FRAME_LONGEST_BYTES (10 + 2 * 9 + (WITH_ACCEL ? 3 * 10 : 0) + 6 * 10 + 9)
 
 #endif

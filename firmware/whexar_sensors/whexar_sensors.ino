@@ -1,13 +1,18 @@
 // WHexaR sensor board: ATmega2560 on an Arduino Mega 2560 (thesis 5.3, 5.4).
-// Samples the IR rangefinders, the leg FSRs and the optional analog
-// accelerometer at 50 Hz, filters each input with a 5-sample trimmed mean and
-// sends a checked text frame (PROTOCOL.md) at 20 Hz (10..50, set by the host
-// with `rate=N#`) over the USB serial line at 1 Mbps.
+// Samples the IR rangefinders, the leg FSRs and, in a WITH_ACCEL=1 build, an
+// analog accelerometer at 50 Hz, filters each input with a 5-sample trimmed
+// mean and sends a checked text frame (PROTOCOL.md) at 20 Hz (10..50, set by
+// the host with `rate=N#`) over the USB serial line at 1 Mbps (BAUD).
 #include <avr/sleep.h>
 
 #include "board_config.h"
 #include "frame.h"
 #include "sensor_filter.h"
+#include "serial_baud.h"
+
+static_assert(baud_supported(F_CPU, SERIAL_BAUD, FRAME_LONGEST_BYTES, FRAME_RATE_MAX_HZ),
+              "BAUD: the USART at F_CPU misses it by more than 2 % as Serial.begin() sets it, "
+              "or it cannot carry the longest frame at FRAME_RATE_MAX_HZ (serial_baud.h)");
 
 // Sampled channels and their keys, in frame order (PROTOCOL.md "Fields").
 static const uint8_t kChannels[] = {

@@ -223,13 +223,13 @@ def test_goal_outside_limits_is_clamped_and_reported(chain: ServoChain) -> None:
 
     async def scenario(h: Harness) -> None:
         await h.wait_for(ServoStates)
-        await h.feed("goals", goals((1, TIBIA, 4.0), (0, COXA, -9.0), reflex=True))
+        await h.feed("goals", goals((1, TIBIA, 4.0), (0, COXA, -6.0), reflex=True))
         await h.wait_for(ServoStates)
         await h.wait_for(ServoStates)
 
     result = run(graph(), scenario)
     clamped = result.events(GoalClamped)
-    assert {(c.servo_id, c.requested_rad) for c in clamped} == {(tibia, 4.0), (coxa, -9.0)}
+    assert {(c.servo_id, c.requested_rad) for c in clamped} == {(tibia, 4.0), (coxa, -6.0)}
     by_id = {c.servo_id: c.sent_rad for c in clamped}
     assert by_id[tibia] == pytest.approx(min(hi, ct.ticks_to_rad(4095)))
     assert by_id[coxa] == pytest.approx(max(math.radians(-135), ct.ticks_to_rad(0)))
@@ -238,7 +238,7 @@ def test_goal_outside_limits_is_clamped_and_reported(chain: ServoChain) -> None:
         for sid, ticks in w.items():
             joint = JOINT_NAMES[(sid - 1) % 7]
             lo_q, hi_q = CFG.joints.by_name(joint).limits_rad or (-math.pi, math.pi)
-            assert ct.rad_to_ticks(lo_q) - 1 <= ticks <= ct.rad_to_ticks(hi_q) + 1
+            assert lo_q <= ct.ticks_to_rad(ticks) <= hi_q  # no tolerance
             assert 0 <= ticks <= 4095
     assert all(s.rejected_goals == 0 for s in chain.servos.values())
 

@@ -17,6 +17,8 @@ import pytest
 
 from whexar.actors.imu import ImuReader, open_bus
 from whexar.actors.messages import (
+    AccelImplausible,
+    AccelPlausible,
     BodyTilt,
     ImuSample,
     SensorLinkDown,
@@ -501,6 +503,49 @@ def test_free_fall_publishes_the_sample_but_no_tilt(chip: FakeLsm9ds1) -> None:
     assert len(zero) >= 9  # 0.2 s at 50 Hz
     tilt_seqs = {t.seq for t in result.messages("tilt", of=BodyTilt)}
     assert not tilt_seqs & {s.seq for s in zero}
+    (fell,) = result.events(AccelImplausible)
+    (landed,) = result.events(AccelPlausible)
+    assert (fell.seq, fell.magnitude_g, fell.sensor, fell.link) == (zero[0].seq, 0.0, "imu", LINK)
+    assert landed.withheld == len(zero)
+
+
+def test_tilt_needs_a_reading_near_1_g(chip: FakeLsm9ds1, tmp_path: Path) -> None:
+    # Tilted 30° about x, at 1 g (a tilt), 1.15 g (inside the default 0.2 g: a tilt),
+    # 1.3 g and 0.7 g (a shock: none), and 1 g again.
+    tilt = (0.0, math.sin(math.radians(30)), math.cos(math.radians(30)))
+    scales = [1.0, 1.15, 1.3, 0.7, 1.0]
+    got: list[tuple[float, BodyTilt | None]] = []
+
+    async def scenario(h: Harness) -> None:
+        for k in scales:
+            chip.accel_g = (tilt[0] * k, tilt[1] * k, tilt[2] * k)
+            await h.sleep(0.1)
+            after = h.now() - 0.05
+            latest = [m for m in h.log.messages("tilt", of=BodyTilt) if m.t > after]
+            got.append((k, latest[-1] if latest else None))
+
+    result = run(scenario)
+    for k, msg in got:
+        if abs(k - 1.0) <= 0.2:
+            assert msg is not None, k
+            assert math.degrees(msg.pitch_rad) == pytest.approx(30.0, abs=0.01)
+        else:
+            assert msg is None, k
+    bad = result.events(AccelImplausible)
+    good = result.events(AccelPlausible)
+    assert len(bad) == 1  # 1.3 g then 0.7 g: one implausible spell
+    assert bad[0].magnitude_g == pytest.approx(1.3, abs=1e-3)
+    assert bad[0].tolerance_g == 0.2
+    assert len(good) == 1
+    assert good[0].withheld == 10  # 0.2 s at 50 Hz
+    # A tighter tolerance from the configuration refuses 1.15 g too.
+    config = tmp_path / "robot.toml"
+    config.write_text("[imu]\ngravity_tolerance_g = 0.1\n")
+    chip.accel_g = (tilt[0] * 1.15, tilt[1] * 1.15, tilt[2] * 1.15)
+    tight = run(duration=0.3, params={"config": str(config)})
+    assert not tight.messages("tilt")
+    (refused,) = tight.events(AccelImplausible)
+    assert refused.tolerance_g == 0.1
 
 
 def test_unknown_fake_and_too_short_stale_window_are_refused(

@@ -15,6 +15,8 @@ from pathlib import Path
 import pytest
 
 from whexar.actors.messages import (
+    AccelImplausible,
+    AccelPlausible,
     BodyTilt,
     LegLoads,
     ObstacleRanges,
@@ -67,6 +69,16 @@ def run(duration: float | None = None, scenario: object = None, **params: object
     )
 
 
+def robot_file(tmp_path: Path, text: str) -> str:
+    """A robot configuration file with only the keys ``text`` changes."""
+    path = tmp_path / "robot.toml"
+    path.write_text(text)
+    return str(path)
+
+
+FITTED = "[sensor_board.accelerometer]\nfitted = true\n"
+
+
 def test_frames_arrive_at_the_frame_rate_with_consecutive_seq() -> None:
     board()
     result = run(duration=2.0)
@@ -95,9 +107,29 @@ def test_ir_distances_follow_eq_5_5_and_the_range_limits() -> None:
     assert last.distances_m[1] == CFG.ir.min_distance_mm / 1000
 
     DEVICES.clear(SENSOR_BOARD)
-    board(counts={"ir1": 60, "ir2": 0})  # beyond 150 cm; no reflection at all
+    board(counts={"ir1": 60, "ir2": 1})  # beyond 150 cm, both
     far = run(duration=0.5).messages("ranges", of=ObstacleRanges)[-1]
     assert far.distances_m == (math.inf, math.inf)
+
+
+def test_an_unplugged_rangefinder_is_no_reading_not_free_space() -> None:
+    # The left sensor is unplugged at 0.5 s (its input falls to 0 V) and back at 1.0 s.
+    def script(t: float) -> dict[str, int]:
+        return {"ir2": 0 if 0.5 <= t < 1.0 else 300}
+
+    board(counts={"ir1": 60}, script=script)
+    result = run(duration=1.5)
+    ranges = result.messages("ranges", of=ObstacleRanges)
+    frames = result.messages("frames", of=SensorFrame)
+    unplugged = [r for r in ranges if r.counts[1] == 0]
+    assert len(unplugged) >= 8  # the filter takes 80 ms to reach 0
+    for r in unplugged:
+        assert r.distances_m == (math.inf, None)  # the right one sees nothing: clear
+    for r in ranges:
+        if r.counts[1] > 0:  # on the way down and up, the filter passes far readings: inf
+            assert r.distances_m[1] is not None
+    assert {f.ir_distances_m for f in frames if f.ir_counts == (60, 0)} == {(math.inf, None)}
+    assert ranges[-1].distances_m[1] == pytest.approx(ir_distance(300))
 
 
 def test_contact_flags_have_hysteresis() -> None:
@@ -125,12 +157,14 @@ def test_contact_flags_have_hysteresis() -> None:
         assert msg.contacts == (False, False, state, False, False, False)
 
 
-def test_tilt_from_the_board_accelerometer() -> None:
+def test_tilt_from_the_board_accelerometer(tmp_path: Path) -> None:
     acc = CFG.sensor_board.accelerometer
     gravity = (math.sin(0.2), math.sin(-0.1), math.cos(0.2) * math.cos(0.1))
     counts = counts_for_acceleration(gravity, acc.zero_g_counts, acc.counts_per_g)
-    board(counts=dict(zip(("accx", "accy", "accz"), counts, strict=True)))
-    tilt = run(duration=0.5).messages("tilt", of=BodyTilt)[-1]
+    board(accelerometer=True, counts=dict(zip(("accx", "accy", "accz"), counts, strict=True)))
+    result = run(duration=0.5, config=robot_file(tmp_path, FITTED))
+    assert not result.events(of=AccelImplausible)
+    tilt = result.messages("tilt", of=BodyTilt)[-1]
     assert tilt.sensor == "board"
     want = tilt_from_acceleration(*gravity)
     # One ADC count is 1/67.5 g: about 0.015 rad at worst near level.
@@ -140,10 +174,64 @@ def test_tilt_from_the_board_accelerometer() -> None:
 
 
 def test_board_without_accelerometer_publishes_no_tilt() -> None:
-    board(accelerometer=False)
+    board()  # like the firmware's default build: no acc fields
     result = run(duration=0.5)
     assert result.messages("frames", of=SensorFrame)[-1].acc_counts is None
     assert result.messages("tilt") == []
+
+
+def test_accelerometer_counts_make_no_tilt_unless_one_is_fitted() -> None:
+    # A WITH_ACCEL=1 build on a board without the sensor: its open inputs at 0 V
+    # once gave -135° of roll and pitch. The default configuration says none is fitted.
+    assert CFG.sensor_board.accelerometer.fitted is False
+    board(accelerometer=True, counts={"accx": 0, "accy": 0, "accz": 0})
+    result = run(duration=0.5)
+    frames = result.messages("frames", of=SensorFrame)
+    assert frames[-1].acc_counts == (0, 0, 0)  # shown as they came…
+    assert all(f.roll_rad is None and f.pitch_rad is None for f in frames)  # …but no tilt
+    assert result.messages("tilt") == []
+    assert not result.events(of=AccelImplausible)
+
+
+def test_implausible_acceleration_gives_no_tilt_and_one_event_each_way(tmp_path: Path) -> None:
+    acc = CFG.sensor_board.accelerometer
+    level = counts_for_acceleration((0.0, 0.0, 1.0), acc.zero_g_counts, acc.counts_per_g)
+    heavy = counts_for_acceleration((0.0, 0.0, 1.25), acc.zero_g_counts, acc.counts_per_g)
+    keys = ("accx", "accy", "accz")
+
+    # Level; at 0.5 s the sensor loses its supply (0 V on every axis, what the
+    # default ADXL335 calibration turns into (-5, -5, -5) g); at 1.0 s a 1.25 g
+    # bump; from 1.5 s level again.
+    def script(t: float) -> dict[str, int]:
+        if 0.5 <= t < 1.0:
+            return dict.fromkeys(keys, 0)
+        return dict(zip(keys, heavy if 1.0 <= t < 1.5 else level, strict=True))
+
+    board(accelerometer=True, script=script)
+    result = run(duration=2.0, config=robot_file(tmp_path, FITTED))
+    frames = result.messages("frames", of=SensorFrame)
+    tilts = result.messages("tilt", of=BodyTilt)
+    (bad,) = result.events(of=AccelImplausible)
+    (good,) = result.events(of=AccelPlausible)
+    assert bad.sensor == "board"
+    assert bad.tolerance_g == acc.gravity_tolerance_g == 0.2
+    first_bad = next(f for f in frames if f.roll_rad is None)
+    assert bad.seq == first_bad.seq
+    assert bad.t == first_bad.t
+    assert bad.magnitude_g > 1.2  # the filter's first mixed value is already far off
+    withheld = [f for f in frames if f.roll_rad is None]
+    assert good.withheld == len(withheld)
+    last_withheld = withheld[-1].seq
+    assert last_withheld is not None
+    assert good.seq == last_withheld + 1
+    assert 1.5 < good.t < 1.65  # 80 ms of filter after the bump ends
+    # Never a tilt from a reading that is not gravity, and none of -135°.
+    assert {t.seq for t in tilts}.isdisjoint(f.seq for f in withheld)
+    for t in tilts:
+        assert abs(math.hypot(*t.accel_g) - 1.0) <= 0.2
+        assert abs(t.roll_rad) < 0.05
+        assert abs(t.pitch_rad) < 0.05
+    assert tilts[-1].t > good.t - 1e-9
 
 
 def test_corrupt_frames_are_rejected_and_never_published() -> None:
@@ -262,7 +350,24 @@ def test_thesis_mode_publishes_plain_frames_without_seq() -> None:
     frames = thesis.messages("frames", of=SensorFrame)
     (plain_frame,) = [f for f in frames if f.seq is None]
     assert plain_frame.fsr_counts == (5, 7, 3, 2, 6, 8)
+    assert plain_frame.roll_rad is None  # acc counts, but no accelerometer fitted
     assert not thesis.events(of=SensorFrameRejected)
+
+
+def test_thesis_mode_rejects_a_frame_with_seq_but_no_crc() -> None:
+    emulator = board()
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(0.21)
+        emulator.inject(b"seq=3;ir1=5;ir2=7#")  # a checked frame cut short
+        await h.sleep(0.1)
+
+    result = run(scenario=scenario, protocol="thesis")
+    (rejected,) = result.events(of=SensorFrameRejected)
+    assert rejected.reason == "seq but no checksum (a checked frame cut short?)"
+    frames = result.messages("frames", of=SensorFrame)
+    assert (5, 7) not in {f.ir_counts for f in frames}
+    assert [f.seq for f in frames] == list(range(len(frames)))
 
 
 def test_missing_device_is_an_event_and_the_reader_keeps_looking(tmp_path: Path) -> None:
@@ -272,7 +377,69 @@ def test_missing_device_is_an_event_and_the_reader_keeps_looking(tmp_path: Path)
     assert len(downs) == 1  # reported once, then retried quietly
     assert "cannot open" in downs[0].reason
     assert not result.events(of=ActorFailed)
-    assert result.events(of=SensorLinkStale)
+    assert not result.events(of=SensorLinkStale)  # no frame ever came: nothing to go stale
+
+
+def test_no_staleness_while_a_board_boots() -> None:
+    # Opening the port resets the Mega; its bootloader keeps it silent about 1 s.
+    board(boot_s=1.0)
+    result = run(duration=2.0)
+    frames = result.messages("frames", of=SensorFrame)
+    assert frames[0].seq == 0
+    assert frames[0].t == pytest.approx(1.0 + PERIOD, abs=2e-3)
+    assert not result.events(of=SensorLinkStale)
+
+
+def test_a_reconnection_is_not_stale_before_its_first_frame(tmp_path: Path) -> None:
+    # With a 2 s staleness window, the link goes down at 1.0 s and is back at
+    # 1.5 s, but the board boots for 2 s: no stale report from that boot…
+    emulator = board(boot_s=2.0)
+    config = robot_file(tmp_path, "[sensor_board]\nstale_after_frames = 40.0\n")
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(3.0)
+        emulator.unplug()
+        await h.sleep(0.2)
+        emulator.replug()
+        await h.sleep(3.0)
+        emulator.silence(until_board_s=10.0)  # …but silence after frames is stale
+        await h.sleep(3.0)
+
+    result = run(scenario=scenario, config=config)
+    ups = result.events(of=SensorLinkUp)
+    assert len(ups) == 2
+    after = [f for f in result.messages("frames", of=SensorFrame) if f.t > ups[1].t]
+    assert after[0].t == pytest.approx(ups[1].t + 2.0 + PERIOD, abs=2e-3)
+    (stale,) = result.events(of=SensorLinkStale)
+    assert stale.t > after[-1].t
+    assert stale.silent_s == pytest.approx(2.0)
+    assert stale.last_seq == after[-1].seq
+
+
+def test_the_rate_command_is_sent_again_after_a_board_restart(tmp_path: Path) -> None:
+    emulator = board(frame_rate_hz=20.0)
+    config = robot_file(tmp_path, "[sensor_board]\nframe_rate_hz = 50.0\n")
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(1.0)
+        emulator.reset()  # a brown-out: the board restarts at its build's 20 Hz
+        await h.sleep(1.0)
+
+    result = run(scenario=scenario, config=config)
+    (gap,) = result.events(of=SensorFrameGap)
+    assert gap.restarted
+    assert gap.seq == 0
+    assert emulator.commands == [b"rate=50#", b"rate=50#"]
+    assert emulator.rate_hz == 50
+    frames = result.messages("frames", of=SensorFrame)
+    after = [f for f in frames if f.t > gap.t]
+    assert after[0].seq == 1
+    # The frame after the restart's first is still at 20 Hz; from then on 50 Hz.
+    steps = [
+        round(b.t - a.t, 4) for a, b in itertools.pairwise([f for f in frames if f.t >= gap.t])
+    ]
+    assert steps[0] == 0.05
+    assert set(steps[1:]) == {0.02}
 
 
 def test_unknown_emulator_name_fails_with_the_registered_names() -> None:
@@ -308,5 +475,5 @@ def test_shipped_sensors_graph_runs_both_readers(capsys: pytest.CaptureFixture[s
     assert "SensorLinkUp    link='i2c-1:0x6b'" in out
     assert "channel ranges: 39 published" in out  # 20 Hz board frames, 0.05 … 1.95 s
     tilts = int(out.split("channel tilt: ")[1].split()[0])
-    assert 39 + 98 <= tilts <= 39 + 101  # the board's 20 Hz and the IMU's 50 Hz share it
+    assert 98 <= tilts <= 101  # the IMU's 50 Hz; the board has no accelerometer fitted
     assert "ActorFailed" not in out

@@ -12,6 +12,7 @@ from dynamixel_sdk import (
     COMM_RX_CORRUPT,
     COMM_RX_TIMEOUT,
     COMM_SUCCESS,
+    COMM_TX_FAIL,
     GroupBulkRead,
     GroupSyncRead,
     GroupSyncWrite,
@@ -218,6 +219,8 @@ def test_hardware_error_sets_alert_and_reboot_clears_it(bus: Bus) -> None:
     assert PH.read1ByteTxRx(bus.port, sid, 64)[0] == 0  # shutdown: torque off
     assert PH.write1ByteTxRx(bus.port, sid, 64, 1)[1] == ALERT | StatusError.RESULT_FAIL
     assert PH.reboot(bus.port, sid) == (COMM_SUCCESS, ALERT)  # the status precedes the reboot
+    assert PH.read1ByteTxRx(bus.port, sid, 70)[1] == COMM_RX_TIMEOUT  # booting: silent
+    bus.at(1.0)  # past the boot time (0.4 s)
     assert PH.read1ByteTxRx(bus.port, sid, 70) == (0, COMM_SUCCESS, 0)
     assert PH.read1ByteTxRx(bus.port, sid, 64)[0] == 0
     assert PH.write1ByteTxRx(bus.port, sid, 64, 1) == (COMM_SUCCESS, 0)
@@ -230,6 +233,9 @@ def test_input_voltage_below_the_limit_raises_an_alert_only(bus: Bus) -> None:
     assert PH.read1ByteTxRx(bus.port, 12, 70) == (HardwareError.INPUT_VOLTAGE, COMM_SUCCESS, ALERT)
     assert PH.read2ByteTxRx(bus.port, 12, 144)[0] == 90
     assert servo.torque_enabled  # input voltage is not in the default Shutdown (52)
+    servo.input_voltage_v = 12.0  # the supply is back: the error clears by itself
+    assert PH.read1ByteTxRx(bus.port, 12, 70) == (0, COMM_SUCCESS, 0)
+    assert servo.torque_enabled
 
 
 def test_status_return_level_and_reg_write_action(bus: Bus) -> None:
@@ -432,3 +438,76 @@ def test_hooks_see_every_request(bus: Bus) -> None:
     bus.at(2.5)
     PH.ping(bus.port, 8)
     assert seen == [(2.5, [8])]
+
+
+# --------------------------------------------------------------------------- boot, watchdog
+
+
+def test_a_servo_is_silent_while_it_boots_after_a_power_up(bus: Bus) -> None:
+    servo = bus.chain.servos[3]
+    PH.write1ByteTxRx(bus.port, 3, 64, 1)
+    bus.at(1.0)
+    bus.chain.power_up(1.0)
+    assert PH.ping(bus.port, 3)[1] == COMM_RX_TIMEOUT
+    assert sync_write(bus, 116, 4, {3: 2500}) == COMM_SUCCESS  # unheard while booting
+    bus.at(1.0 + servo.boot_time_s - 0.01)
+    assert PH.ping(bus.port, 3)[1] == COMM_RX_TIMEOUT
+    bus.at(1.0 + servo.boot_time_s)
+    assert PH.ping(bus.port, 3)[1] == COMM_SUCCESS
+    assert PH.read1ByteTxRx(bus.port, 3, 64)[0] == 0  # RAM at its initial values: torque off
+    assert servo.goal != 2500
+
+
+def test_the_bus_watchdog_stops_a_driving_wheel_and_locks_its_goals(bus: Bus) -> None:
+    wheel = 7  # RF wheel: velocity mode
+    servo = bus.chain.servos[wheel]
+    assert PH.write1ByteTxRx(bus.port, wheel, 11, 1) == (COMM_SUCCESS, 0)  # velocity mode
+    assert PH.write1ByteTxRx(bus.port, wheel, 64, 1) == (COMM_SUCCESS, 0)
+    assert PH.write4ByteTxRx(bus.port, wheel, 104, 50) == (COMM_SUCCESS, 0)
+    assert PH.write1ByteTxRx(bus.port, wheel, 98, 5) == (COMM_SUCCESS, 0)  # 5 × 20 ms
+    bus.at(0.09)
+    assert PH.read4ByteTxRx(bus.port, wheel, 128)[0] == 50  # still driving: fed at 0.09
+    bus.at(0.15)
+    assert PH.read4ByteTxRx(bus.port, wheel, 128)[0] == 50  # 60 ms since: not yet
+    bus.at(0.5)  # silence from 0.15: the watchdog expired at 0.25
+    assert PH.read1ByteTxRx(bus.port, wheel, 98)[0] == 0xFF  # −1: Bus Watchdog Error
+    assert PH.read4ByteTxRx(bus.port, wheel, 128)[0] == 0
+    stopped_at = servo.position
+    turned = 50 * 0.229 / 60 * 4096 * 0.25  # ticks from 0 to 0.25 s at 50 units
+    # (less the few ms the set-up writes took before the goal: 0.5 s would be 195 more)
+    assert stopped_at == pytest.approx(2048 + turned, abs=5)
+    assert servo.torque_enabled  # it stops and holds, with torque
+    # Goals are read-only until 0 is written to Bus Watchdog; only 0 clears it.
+    assert PH.write4ByteTxRx(bus.port, wheel, 104, 60)[1] == StatusError.DATA_RANGE
+    assert PH.write1ByteTxRx(bus.port, wheel, 98, 5)[1] == StatusError.DATA_RANGE
+    assert PH.write1ByteTxRx(bus.port, wheel, 98, 0) == (COMM_SUCCESS, 0)
+    assert PH.write4ByteTxRx(bus.port, wheel, 104, 60) == (COMM_SUCCESS, 0)
+
+
+def test_the_watchdog_is_fed_only_by_packets_addressed_to_the_servo(bus: Bus) -> None:
+    for sid in (7, 14):
+        PH.write1ByteTxRx(bus.port, sid, 64, 1)
+        PH.write1ByteTxRx(bus.port, sid, 98, 5)
+    for k in range(1, 10):
+        bus.at(0.05 * k)
+        PH.ping(bus.port, 14)  # servo 14 hears a packet every 50 ms, servo 7 none
+    assert PH.read1ByteTxRx(bus.port, 14, 98)[0] == 5
+    assert PH.read1ByteTxRx(bus.port, 7, 98)[0] == 0xFF
+    for k in range(10, 20):
+        bus.at(0.05 * k)
+        sync_write(bus, 116, 4, {14: 2048})  # a Sync Write that lists it feeds it too
+    assert PH.read1ByteTxRx(bus.port, 14, 98)[0] == 5
+
+
+def test_without_torque_the_watchdog_watches_nothing(bus: Bus) -> None:
+    PH.write1ByteTxRx(bus.port, 4, 98, 1)
+    bus.at(10.0)
+    assert PH.read1ByteTxRx(bus.port, 4, 98)[0] == 1
+
+
+def test_a_lost_host_write_reaches_no_servo(bus: Bus) -> None:
+    bus.chain.faults.tx_fail = 1
+    assert sync_write(bus, 116, 4, {2: 2100}) == COMM_TX_FAIL
+    assert bus.chain.servos[2].goal == 2048
+    assert sync_write(bus, 116, 4, {2: 2100}) == COMM_SUCCESS
+    assert bus.chain.servos[2].goal == 2100

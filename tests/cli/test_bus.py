@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import selectors
 import signal
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -141,3 +143,94 @@ def test_scan_refuses_a_baud_rate_the_sdk_cannot_set(capsys: pytest.CaptureFixtu
         main(["bus", "scan", "--port", "/dev/null", "--baud", "4500000"])
     assert exc.value.code == 2
     assert "'4500000': allowed baud rates: 9600," in capsys.readouterr().err
+
+
+_DRIVING_GRAPH = """
+[runtime]
+stop_timeout_s = 1.0
+
+[[actors]]
+name = "bus"
+class = "whexar.actors.bus:BusScheduler"
+params = {{ port = "{port}", plan = "positioning" }}
+inputs = {{ goals = "goals" }}
+outputs = {{ state = "state" }}
+
+[[actors]]
+name = "wiggle"
+class = "whexar.testing.bus:GoalWiggle"
+params = {{ amplitude_rad = 0.0, wheel_rad_s = 2.0 }}
+inputs = {{ state = "state" }}
+outputs = {{ goals = "goals" }}
+
+[channels.goals]
+message = "JointGoals"
+policy = "queue"
+
+[channels.state]
+message = "ServoStates"
+policy = "latest"
+"""
+
+
+def test_sigkill_of_a_runtime_driving_the_wheels_and_the_watchdog_stops_them(
+    emulate: list[subprocess.Popen[str]], tmp_path: Path
+) -> None:
+    """The Bus Watchdog, end to end: real processes, a real pty, real time."""
+    import time
+
+    from whexar.bus import control_table as ct
+    from whexar.bus.sdk import DxlBus, open_port
+
+    _, path = _start(emulate)
+    graph = tmp_path / "drive.toml"
+    graph.write_text(_DRIVING_GRAPH.format(port=path))
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    runtime = subprocess.Popen(
+        [sys.executable, "-m", "whexar.cli", "run", str(graph)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=ROOT,
+        env=env,
+    )
+    emulate.append(runtime)  # killed by the fixture whatever happens
+    # A thread reads its lines: it prints several at once, and a select() on the pipe
+    # would not see those already buffered.
+    lines: queue.Queue[str] = queue.Queue()
+    out = runtime.stdout
+    assert out is not None
+
+    def pump() -> None:
+        for text in out:
+            lines.put(text)
+
+    threading.Thread(target=pump, daemon=True).start()
+    while "ActorReady" not in (line := lines.get(timeout=20.0)) or "wiggle" not in line:
+        pass
+    time.sleep(0.5)  # driving
+    runtime.send_signal(signal.SIGKILL)
+    runtime.wait()
+    time.sleep(0.3)  # > bus.watchdog_ms (100 ms)
+    wheels = [leg.servo_ids[JOINT_NAMES.index("wheel")] for leg in CFG.legs]
+    reg = ct.MODELS["MX-28"].register
+    port = open_port(path, 1_000_000)
+    try:
+        bus = DxlBus(port)
+
+        def read(sid: int, name: str) -> int:
+            for _ in range(3):  # a reply may be lost to the killed process's last bytes
+                reply = bus.read(sid, reg(name))
+                if reply.ok:
+                    return reply.value
+            pytest.fail(f"servo {sid} does not answer a read of {name}")
+
+        first = {w: read(w, "present_position") for w in wheels}
+        for w in wheels:
+            assert read(w, "bus_watchdog") == -1  # stopped by the watchdog
+            assert read(w, "present_velocity") == 0
+            assert read(w, "torque_enable") == 1  # stopped, not limp
+        time.sleep(0.2)
+        assert {w: read(w, "present_position") for w in wheels} == first
+    finally:
+        port.closePort()

@@ -1,6 +1,7 @@
 """End to end: the real firmware image on a simulated ATmega2560, read by the real reader.
 
-``make -C firmware all sim`` builds the sketch for the Mega 2560 with avr-gcc and the
+``make -C firmware all sim accel`` builds the sketch for the Mega 2560 with avr-gcc
+(the default build, and ``build/accel/``: ``WITH_ACCEL=1`` at 50 Hz and 2 Mbps) and the
 simavr harness (``firmware/sim/whexar_sim.c``); the harness runs the very ELF a user
 flashes, injects analog voltages from a script and hands the UART bytes over (stdout,
 or a pseudo-terminal). The tests check the frames against the injected voltages,
@@ -17,11 +18,13 @@ import selectors
 import subprocess
 import sys
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 
 from whexar.actors.messages import (
+    AccelImplausible,
     BodyTilt,
     LegLoads,
     ObstacleRanges,
@@ -31,6 +34,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import RobotConfig
 from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+from whexar.sensors.board_emulator import SensorBoardEmulator
 from whexar.sensors.frame import Frame, FrameDecoder, Rejected
 from whexar.testing import run_actors
 from whexar.testing.sensors import sensor_graph
@@ -38,15 +42,17 @@ from whexar.testing.sensors import sensor_graph
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 SIM = FIRMWARE / "build" / "whexar-sim"
+ACCEL_ELF = FIRMWARE / "build" / "accel" / "whexar_sensors.elf"
 CFG = RobotConfig()
 VREF_MV = 5000
 
 VOLTAGES = {
     "ir1": 1500,  # about 0.28 m by eq. 5.5
     "ir2": 250,  # 51 counts: nothing within 150 cm
+    # Pitched 30° on the ADXL335 calibration: 1.65 V at 0 g, 330 mV/g.
     "accx": 1650,
-    "accy": 1900,
-    "accz": 1980,
+    "accy": 1815,
+    "accz": 1936,
     "fsr0": 0,
     "fsr1": 400,
     "fsr2": 980,  # 200 counts: exactly contact_on_counts
@@ -66,13 +72,17 @@ EXPECTED = {key: simavr_counts(mv) for key, mv in VOLTAGES.items()}
 
 @pytest.fixture(scope="module")
 def firmware() -> Path:
-    """Build the firmware and the harness (a no-op when they are up to date)."""
+    """Build the firmware, its accelerometer variant and the harness (no-ops when up to date)."""
     done = subprocess.run(
-        ["make", "-C", str(FIRMWARE), "all", "sim"], capture_output=True, text=True, check=False
+        ["make", "-C", str(FIRMWARE), "all", "sim", "accel"],
+        capture_output=True,
+        text=True,
+        check=False,
     )
     if done.returncode != 0:
-        pytest.fail(f"make -C firmware all sim failed:\n{done.stdout}\n{done.stderr}")
+        pytest.fail(f"make -C firmware all sim accel failed:\n{done.stdout}\n{done.stderr}")
     assert SIM.exists()
+    assert ACCEL_ELF.exists()
     return SIM
 
 
@@ -102,8 +112,42 @@ def test_firmware_frames_carry_exactly_the_injected_voltages(firmware: Path) -> 
     assert all(f.checked for f in frames)
     for f in frames:
         assert f.ir == (EXPECTED["ir1"], EXPECTED["ir2"])
-        assert f.acc == (EXPECTED["accx"], EXPECTED["accy"], EXPECTED["accz"])
+        assert f.acc is None  # the default build has no accelerometer (WITH_ACCEL=0)
         assert f.fsr == tuple(EXPECTED[f"fsr{i}"] for i in range(6))
+
+
+def test_accelerometer_build_carries_its_channels(firmware: Path) -> None:
+    data = simulate("--elf", str(ACCEL_ELF), *mv_args(VOLTAGES), "--duration-ms", "1010")
+    frames = decode(data)
+    assert len(frames) == 50  # 50 Hz: 0.02 … 1.0 s
+    for f in frames:
+        assert f.acc == (EXPECTED["accx"], EXPECTED["accy"], EXPECTED["accz"])
+        assert f.ir == (EXPECTED["ir1"], EXPECTED["ir2"])
+
+
+def test_default_build_agrees_with_the_default_configuration() -> None:
+    # One statement of "is there an analog accelerometer, at what rates":
+    # the firmware's build defaults and RobotConfig() must say the same.
+    makefile = (FIRMWARE / "Makefile").read_text()
+    header = (FIRMWARE / "whexar_sensors" / "board_config.h").read_text()
+
+    def make_default(name: str) -> int:
+        (line,) = [ln for ln in makefile.splitlines() if ln.split("?=")[0].strip() == name]
+        return int(line.split("?=")[1].split("#")[0])
+
+    def header_default(name: str) -> int:
+        (line,) = [ln for ln in header.splitlines() if ln.startswith(f"#define {name} ")]
+        return int(line.split()[2].rstrip("UL"))
+
+    board = CFG.sensor_board
+    emulator = SensorBoardEmulator()  # the firmware's arithmetic in Python, default build
+    fitted = board.accelerometer.fitted
+    assert make_default("WITH_ACCEL") == header_default("WITH_ACCEL") == fitted
+    assert emulator.accelerometer == fitted
+    assert make_default("BAUD") == header_default("SERIAL_BAUD") == board.baudrate
+    assert emulator.baudrate == board.baudrate
+    assert make_default("FRAME_RATE_HZ") == header_default("FRAME_RATE_HZ") == board.frame_rate_hz
+    assert emulator.frame_rate_hz == board.frame_rate_hz
 
 
 def test_firmware_filter_follows_a_step_as_documented(firmware: Path, tmp_path: Path) -> None:
@@ -139,11 +183,11 @@ def test_firmware_obeys_the_rate_command(firmware: Path, tmp_path: Path) -> None
     assert 58 <= len(frames) <= 61
 
 
-@pytest.fixture
-def pty_sim(firmware: Path, tmp_path: Path) -> Iterator[str]:
+@contextmanager
+def sim_on_pty(sim: Path, voltages: dict[str, int], *args: str) -> Iterator[str]:
     """The firmware on a pty in real time; yields the pty's path."""
     proc = subprocess.Popen(
-        [str(firmware), "--pty", "--realtime", "--quiet", *mv_args(VOLTAGES)],
+        [str(sim), "--pty", "--realtime", "--quiet", *mv_args(voltages), *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -164,6 +208,13 @@ def pty_sim(firmware: Path, tmp_path: Path) -> Iterator[str]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+@pytest.fixture
+def pty_sim(firmware: Path) -> Iterator[str]:
+    """The default firmware on a pty in real time; yields the pty's path."""
+    with sim_on_pty(firmware, VOLTAGES) as path:
+        yield path
 
 
 def test_reader_publishes_what_the_firmware_measured(pty_sim: str, tmp_path: Path) -> None:
@@ -191,6 +242,28 @@ def test_reader_publishes_what_the_firmware_measured(pty_sim: str, tmp_path: Pat
     assert loads.counts == tuple(EXPECTED[f"fsr{i}"] for i in range(6))
     on = CFG.fsr.contact_on_counts
     assert loads.contacts == tuple(c >= on for c in loads.counts)
+    assert not result.messages("tilt")  # no accelerometer on the default board
+    assert all(f.acc_counts is None and f.roll_rad is None for f in frames)
+
+
+def test_reader_tilt_and_a_missing_rangefinder_on_the_accelerometer_build(
+    firmware: Path, tmp_path: Path
+) -> None:
+    config = tmp_path / "robot.toml"
+    config.write_text(
+        "[sensor_board]\nbaudrate = 2000000\n[sensor_board.accelerometer]\nfitted = true\n"
+    )
+    voltages = {**VOLTAGES, "ir2": 0}  # the left rangefinder unplugged: 0 V
+    with sim_on_pty(firmware, voltages, "--elf", str(ACCEL_ELF)) as path:
+        result = run_actors(
+            sensor_graph(path, {"config": str(config)}), duration=1.0, virtual=False
+        )
+    assert not result.events(of=SensorFrameRejected)
+    assert not result.events(of=AccelImplausible)
+    ranges = result.messages("ranges", of=ObstacleRanges)[-1]
+    assert ranges.counts == (EXPECTED["ir1"], 0)
+    assert ranges.distances_m[0] == pytest.approx(ir_distance(EXPECTED["ir1"]), rel=1e-12)
+    assert ranges.distances_m[1] is None  # no reading: not free space
     tilt = result.messages("tilt", of=BodyTilt)[-1]
     acc = CFG.sensor_board.accelerometer
     accel = [
@@ -202,9 +275,7 @@ def test_reader_publishes_what_the_firmware_measured(pty_sim: str, tmp_path: Pat
     roll, pitch = tilt_from_acceleration(*accel)
     assert tilt.roll_rad == pytest.approx(roll, rel=1e-12)
     assert tilt.pitch_rad == pytest.approx(pitch, rel=1e-12)
-    assert math.degrees(tilt.pitch_rad) == pytest.approx(
-        math.degrees(math.atan2(1900 - 1650, 1980 - 1650)), abs=1.0
-    )
+    assert math.degrees(tilt.pitch_rad) == pytest.approx(30.0, abs=1.0)
 
 
 def test_monitor_prints_the_firmwares_frames(pty_sim: str) -> None:
@@ -229,6 +300,10 @@ def test_monitor_prints_the_firmwares_frames(pty_sim: str) -> None:
     records = [json.loads(line) for line in done.stdout.splitlines()]
     frames = [r for r in records if r["kind"] == "frame"]
     assert len(frames) >= 8
-    assert frames[-1]["raw"] == EXPECTED
+    raw = {k: v for k, v in EXPECTED.items() if not k.startswith("acc")}
+    assert frames[-1]["raw"] == raw
     assert frames[-1]["loads"] == [EXPECTED[f"fsr{i}"] for i in range(6)]
+    assert frames[-1]["ir_status"] == ["range", "clear"]
+    assert frames[-1]["ir_distance_m"][1] is None
+    assert frames[-1]["roll_deg"] is None
     assert {r["event"] for r in records if r["kind"] == "event"} == {"SensorLinkUp"}

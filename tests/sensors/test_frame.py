@@ -17,6 +17,7 @@ from whexar.sensors.frame import (
     MAX_FRAME_BYTES,
     Frame,
     FrameDecoder,
+    Mode,
     Rejected,
     crc16,
     encode_frame,
@@ -161,6 +162,26 @@ def test_thesis_mode_accepts_the_plain_frame_and_still_checks_a_crc() -> None:
     assert checked.checked
 
 
+def test_thesis_mode_rejects_a_frame_with_seq_but_no_crc() -> None:
+    decoder = FrameDecoder(mode="thesis")
+    # A checked frame whose tail was lost: it carries seq, so it needed a crc.
+    (cut,) = decoder.feed(b"seq=5;ir1=402;ir2=118#")
+    assert isinstance(cut, Rejected)
+    assert cut.reason == "seq but no checksum (a checked frame cut short?)"
+    # A corrupted byte that became '#' after the IR group: neither half is published.
+    data = bytearray(good(6))
+    data[data.index(b";accx")] = ord("#")
+    out = decoder.feed(bytes(data))
+    assert frames(out) == []
+    assert rejected(out)[0].reason.startswith("seq but no checksum")
+    (after,) = decoder.feed(good(7))  # the next intact frame still decodes
+    assert isinstance(after, Frame)
+    assert after.seq == 7
+    # In checked mode the same cut frame was always refused.
+    (checked,) = FrameDecoder().feed(b"seq=5;ir1=402;ir2=118#")
+    assert isinstance(checked, Rejected)
+
+
 def test_thesis_mode_recovers_a_plain_frame_after_garbage() -> None:
     out = FrameDecoder(mode="thesis").feed(b"\xff\xfe" + THESIS_FRAME[:20] + THESIS_FRAME)
     assert len(frames(out)) == 1
@@ -208,6 +229,24 @@ def test_sequence_gaps_wrap_and_restarts() -> None:
     assert decoder.stats.restarts == 2
 
 
+def test_a_frame_cut_off_by_opening_the_port_is_dropped_quietly() -> None:
+    decoder = FrameDecoder()
+    decoder.clear(tail_expected=True)  # opened while the board was sending
+    tail = good(4)[40:]
+    out = decoder.feed(tail + good(5) + tail)
+    assert [f.seq for f in frames(out)] == [5]
+    assert len(rejected(out)) == 1  # only the first bytes get the benefit of the doubt
+    assert decoder.stats.rejected == 1
+    assert decoder.stats.garbage_bytes == 2 * len(tail)
+    # A first candidate that holds a frame after garbage is reported as usual.
+    decoder.clear(tail_expected=True)
+    out = decoder.feed(b"noise" + good(6))
+    assert [f.seq for f in frames(out)] == [6]
+    assert rejected(out)[0].reason.startswith("garbage before a frame")
+    # Without tail_expected the tail is a rejected frame.
+    assert len(rejected(FrameDecoder().feed(tail))) == 1
+
+
 def test_clear_forgets_the_sequence_and_the_partial_frame() -> None:
     decoder = FrameDecoder()
     decoder.feed(good(10) + good(11)[:30])
@@ -253,6 +292,8 @@ def test_arbitrary_bytes_never_raise_and_chunking_does_not_matter(
 
 mutation = st.one_of(
     st.tuples(st.just("insert"), st.integers(min_value=0), st.integers(0, 255)),
+    # A stray terminator, which cuts a frame short: worth its own odds.
+    st.tuples(st.just("insert"), st.integers(min_value=0), st.just(ord("#"))),
     st.tuples(st.just("delete"), st.integers(min_value=0), st.just(0)),
     st.tuples(st.just("flip"), st.integers(min_value=0), st.integers(0, 7)),
 )
@@ -282,12 +323,14 @@ def mangle(data: bytes, mutations: list[tuple[str, int, int]]) -> bytes:
         max_size=8,
     ),
     st.lists(st.integers(min_value=0), max_size=12),
+    st.sampled_from(["checked", "thesis"]),
 )
 def test_mangled_frames_are_never_published_and_intact_ones_always_are(
     values: list[tuple[tuple[int, ...], ...]],
     first_seq: int,
     mutations: list[tuple[tuple[str, int, int], ...] | None],
     cuts: list[int],
+    mode: Mode,
 ) -> None:
     originals: dict[int, Frame] = {}
     stream = bytearray()
@@ -301,9 +344,12 @@ def test_mangled_frames_are_never_published_and_intact_ones_always_are(
         if mangled == data:
             intact.append(seq)
         stream += mangled
-    decoder = FrameDecoder()
+    # In thesis mode too, for every frame that carries seq: a checked frame cut short
+    # by a corrupted '#' once passed there. A plain frame has nothing to check it
+    # by (a damaged "seq=" leaves one), so thesis mode can promise no more.
+    decoder = FrameDecoder(mode=mode)
     out = decode_chunks(decoder, split(bytes(stream), cuts))
-    published = frames(out)
+    published = [f for f in frames(out) if f.seq is not None or mode == "checked"]
     for frame in published:
         original = originals.get(frame.seq)  # type: ignore[arg-type]
         assert original is not None, f"invented frame {frame}"
@@ -311,4 +357,4 @@ def test_mangled_frames_are_never_published_and_intact_ones_always_are(
     got = [f.seq for f in published]
     for seq in intact:
         assert seq in got, f"intact frame {seq} lost: {bytes(stream)!r}"
-    assert decoder.stats.frames == len(published)
+    assert decoder.stats.frames == len(frames(out))

@@ -90,17 +90,21 @@ def test_cli_prints_frames_and_events_as_json(
 ) -> None:
     board = Board(tmp_path / "ttyBOARD")
     board.plug()
+    config = tmp_path / "robot.toml"
+    config.write_text("[sensor_board.accelerometer]\nfitted = true\n")
 
     def write() -> None:
         time.sleep(0.3)
         board.send(encode_frame(seq=0, ir=(300, 60), acc=(338, 338, 405), fsr=FSR))
         board.send(b"seq=1;ir1=3OO;crc=0000#")  # corrupt: rejected
-        board.send(encode_frame(seq=5, ir=(300, 60), acc=(338, 338, 405), fsr=FSR))  # a gap
+        # A gap; the left rangefinder unplugged (0 counts); the accelerometer at 0 V.
+        board.send(encode_frame(seq=5, ir=(300, 0), acc=(0, 0, 0), fsr=FSR))
 
     writer = threading.Thread(target=write)
     writer.start()
     try:
-        code = main(["sensors", "--port", str(board.link), "--json", "--duration", "0.8"])
+        args = ["sensors", "--port", str(board.link), "--config", str(config), "--json"]
+        code = main([*args, "--duration", "0.8"])
     finally:
         writer.join()
         board.unplug()
@@ -113,10 +117,17 @@ def test_cli_prints_frames_and_events_as_json(
     assert first["raw"]["ir1"] == 300
     assert first["raw"]["fsr2"] == 300
     assert first["ir_distance_m"][0] == pytest.approx(0.315, abs=0.001)  # eq. 5.5
-    assert first["ir_distance_m"][1] is None  # 60 counts: beyond 150 cm
+    assert first["ir_distance_m"][1] is None  # 60 counts: beyond 150 cm…
+    assert first["ir_status"] == ["range", "clear"]  # …which is "clear"
     assert first["loads"] == list(FSR)
     assert first["contacts"] == [False, False, True, False, False, False]
     assert first["roll_deg"] == pytest.approx(0.34, abs=0.01)
+    second = frames[1]
+    assert second["ir_distance_m"][1] is None
+    assert second["ir_status"] == ["range", "no_reading"]  # 0 counts: unplugged
+    assert second["roll_deg"] is None  # (-5, -5, -5) g is not gravity
+    assert events["AccelImplausible"]["seq"] == 5
+    assert events["AccelImplausible"]["magnitude_g"] == pytest.approx(8.66, abs=0.01)
     assert events["SensorFrameRejected"]["reason"] == "checksum mismatch"
     assert events["SensorFrameGap"]["missed"] == 4
     assert events["SensorLinkStale"]["last_seq"] == 5
@@ -131,4 +142,4 @@ def test_cli_on_a_missing_port_reports_it_and_keeps_looking(
     assert code == 0
     assert "link DOWN" in out
     assert "No such file or directory" in out
-    assert "STALE" in out
+    assert "STALE" not in out  # no frame ever came: nothing went stale

@@ -6,47 +6,73 @@ The control loop is bus-bound, so one actor plans every byte on the servo
 bus and nothing else touches it. A cycle is:
 
 1. take every goal that arrived since the last cycle — the latest per joint
-   wins — and clamp it to the joint's limits (a clamped goal is an event;
-   nothing outside the limits reaches the wire);
+   wins, except that a reflex goal (``JointGoals.reflex``) wins over any
+   other for the same joint in the same cycle — and bring it within the
+   joint's limits: a position is clamped to the limits and rounded to a tick
+   *inside* them, a wheel speed to the servo's Velocity Limit (each clamp an
+   event); a goal that is no command at all (not finite, absurdly far out, a
+   position for a wheel) is refused with an event. Nothing outside the
+   limits reaches the wire;
 2. run the reads the plan says are due (:mod:`whexar.bus.plan`), each one
    Sync Read or Fast Sync Read of a contiguous register span;
-3. Sync Write the goals that changed (positions; wheel speeds separately);
+3. Sync Write the goals that changed (positions; wheel speeds separately),
+   and the goals of servos no packet addressed for half the Bus Watchdog
+   period, so that every servo keeps hearing the host. A write the port
+   failed to send is counted and its goals go out again in the next cycle;
 4. publish :class:`ServoStates` for the cycle, :class:`ServoHealth` for slow
    readings, and :class:`BusStats` once a second.
 
 Steps 2 and 3 are one job for the port owner (:mod:`whexar.bus.sdk`): one
 thread hop per cycle on a real port, exact wire time on the emulator.
 
-Start-up pings every configured servo and checks its model, turns torque
-off to write Return Delay Time and the operating mode, detects Fast Sync
-Read (never assumed: MX support is unconfirmed), sets each goal to the
-present position and enables torque with retries.
+Start-up reads before it writes: it pings every configured servo (waiting
+up to ``bus.boot_timeout_s`` for servos still booting) and checks its
+model, then reads each servo's Return Delay Time, Operating Mode, Shutdown,
+Torque Enable, Velocity Limit, Bus Watchdog and goal. Only a servo whose
+EEPROM settings differ from the configuration has its torque turned off,
+and only the values that differ are written: a robot standing under torque
+keeps standing through a restart. A servo already under torque keeps its
+goal (brought within the limits); the others get their present position
+(likewise) and torque on, verified, with retries. A Bus Watchdog error left
+by a host that stopped without stopping the servos is reported and cleared;
+then the watchdog is armed (``bus.watchdog_ms``): if this process dies, the
+servos stop by themselves. Fast Sync Read is detected, never assumed.
 
 Failures, after ROBOTIS's ros2_control hardware interface:
 
 * a failed read is retried (``bus.retries``) from the servo that failed,
   and counted; a servo failing ``bus.degrade_after`` cycles in a row is
-  *degraded*: left out of the cycle and pinged every ``probe_period_s``
-  until it answers, when its settings are restored;
+  *degraded*: left out of the cycle and pinged every ``probe_period_s``;
 * a status packet with the Alert bit, or a non-zero Hardware Error Status
-  read, means a hardware error: the servo is rebooted, its settings and goal
-  restored and its torque re-enabled, each step an event;
+  read, is classified by the servo's Shutdown mask. A bit in the mask
+  (overload, overheating, electrical shock by default) latched and turned
+  torque off: the servo is rebooted. It is silent while it boots (about
+  0.4 s): the cycle goes on without it, polling it, until it answers (then
+  its settings, goal and torque are restored) or ``boot_timeout_s`` passes
+  (then it is degraded). A bit outside the mask (input voltage, by default)
+  does not latch: the servo keeps its torque, the bit is reported
+  (:class:`HardwareWarning`, and :class:`SupplyLow` for the bus) and clears
+  by itself when the supply is back — no reboot;
+* polling a booting servo or probing a degraded one is one ping per cycle
+  at most, its timeout bounded by the nominal cycle time, so that no cycle
+  takes more than twice its nominal time;
 * Fast Sync Read that fails where Sync Read succeeds three times in a row
   falls back to Sync Read; it is detected again after a servo recovers;
 * losing a femur or tibia servo (the legs cannot carry the body), or the
   port itself, is :class:`BusLost` and asks the runtime for a safe stop.
 
-On stop (and on a safe stop) the servos end in ``bus.on_stop``: torque off
-by default, or holding their last goals.
+On stop (and on a safe stop) the wheels are brought to zero speed, then the
+servos end in ``bus.on_stop``: torque off by default, or holding their last
+positions (with the watchdog disarmed, so a held robot stays held).
 """
 
 from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Final, Literal
 
 import anyio
 from pydantic import Field
@@ -56,7 +82,10 @@ from whexar.actors.messages import (
     BusStats,
     BusWarning,
     GoalClamped,
+    GoalRefused,
     HardwareFault,
+    HardwareWarning,
+    JointGoal,
     JointGoals,
     JointState,
     ReadModeChanged,
@@ -67,6 +96,10 @@ from whexar.actors.messages import (
     ServoRecovered,
     ServoRestored,
     ServoStates,
+    SupplyLow,
+    SupplyRestored,
+    WatchdogStopped,
+    WriteFailed,
 )
 from whexar.bus import control_table as ct
 from whexar.bus.emulator.faults import FaultPlanFile
@@ -78,6 +111,7 @@ from whexar.bus.sdk import (
     DxlBus,
     InlinePortOwner,
     PortOwner,
+    Reply,
     SyncReadResult,
     ThreadPortOwner,
     comm_name,
@@ -97,6 +131,25 @@ FAST_FALLBACK_AFTER: Final = 3
 EMULATOR: Final = "emulator"
 """The port name of a fresh in-process servo emulator; ``emulator:NAME`` opens the chain
 registered as NAME (:data:`~whexar.bus.emulator.chain.SERVO_CHAIN`)."""
+ABSURD_TURNS: Final = 1.0
+"""A position goal more than this many turns beyond its joint's limits is refused, not
+clamped: it is an upstream bug, not a command to saturate."""
+ABSURD_SPEED_FACTOR: Final = 10.0
+"""Likewise a wheel speed beyond this multiple of the servo's Velocity Limit."""
+WARNING_RECHECK_S: Final = 0.1
+"""While a servo's non-latching error stands, how often an Alert makes it be read again
+(a latching error on top of it is seen within this)."""
+BOOT_POLL_S: Final = 0.05
+"""How often a rebooted servo is pinged while it boots (one ping per cycle at most)."""
+START_RETRY_S: Final = 0.05
+"""Pause between start-up ping rounds while servos are still booting."""
+NOMINAL_SMOOTHING: Final = 0.1
+"""Weight of the newest healthy cycle in the nominal cycle time (an exponential mean)."""
+DEFAULT_NOMINAL_S: Final = 0.02
+"""The nominal cycle time before the first healthy cycle was measured."""
+MIN_PROBE_TIMEOUT_MS: Final = 1.0
+"""Shortest wait for a probed servo's status: a servo answers in ~0.1 ms plus its Return
+Delay Time at 1 Mbps, and a USB adapter adds its latency timer (1 ms when set right)."""
 
 _REG_POSITION = ct.MODELS["MX-64"].register("present_position")
 _TORQUE = ct.MODELS["MX-64"].register("torque_enable")
@@ -105,11 +158,51 @@ _GOAL_POSITION = ct.MODELS["MX-64"].register("goal_position")
 _GOAL_VELOCITY = ct.MODELS["MX-64"].register("goal_velocity")
 _RETURN_DELAY = ct.MODELS["MX-64"].register("return_delay_time")
 _OPERATING_MODE = ct.MODELS["MX-64"].register("operating_mode")
+_WATCHDOG = ct.MODELS["MX-64"].register("bus_watchdog")
+_SETTINGS = ct.block(["return_delay_time", "operating_mode"])
+"""Return Delay Time (9) and Operating Mode (11): the EEPROM the scheduler sets."""
+_SURVEY = ct.block(
+    [
+        "return_delay_time",
+        "operating_mode",
+        "velocity_limit",
+        "shutdown",
+        "torque_enable",
+        "hardware_error_status",
+        "bus_watchdog",
+        "goal_position",
+        "present_position",
+    ]
+)
+"""What start-up reads of every servo before it writes anything: one Sync Read of 9–135."""
 _pack_i32 = struct.Struct("<i").pack
 """Goal Position/Velocity bytes (signed 32-bit, little-endian); goals are clamped first."""
 _MODE_VELOCITY: Final = 1
 _MODE_POSITION: Final = 3
 """Operating Mode (11): 1 velocity control (the wheel), 3 position control (e-manual)."""
+_WATCHDOG_ERROR: Final = -1
+"""Bus Watchdog (98) reads −1 after it stopped the servo (e-manual)."""
+_WATCHDOG_UNIT_S: Final = 0.02
+"""Bus Watchdog counts 20 ms units (e-manual)."""
+
+State = Literal["ok", "booting", "degraded"]
+
+
+def tick_limits(lo: float, hi: float) -> tuple[int, int]:
+    """The first and last Goal Position ticks whose angle lies within [lo, hi] (rad).
+
+    Rounding to the nearest tick could step past a limit (tibia 150° is tick
+    3754.67: 3755 is 150.03°); these are the ticks inside, with no tolerance,
+    within the register's one turn (0…4095).
+    """
+    per_tick = ct.ticks_to_rad(ct.CENTER_TICKS + 1)
+    first = max(0, ct.CENTER_TICKS + math.ceil(lo / per_tick) - 1)
+    while ct.ticks_to_rad(first) < lo:
+        first += 1
+    last = min(ct.TICKS_PER_REV - 1, ct.CENTER_TICKS + math.floor(hi / per_tick) + 1)
+    while ct.ticks_to_rad(last) > hi:
+        last -= 1
+    return first, last
 
 
 @dataclass(slots=True)
@@ -121,18 +214,42 @@ class _Servo:
     endless: bool
     lo: float
     hi: float
-    """Clamp range (rad): the joint's limits within what Goal Position can express."""
+    """The joint's limits (rad) within what Goal Position can express."""
+    lo_tick: int
+    hi_tick: int
+    """The ticks inside ``lo``…``hi`` (:func:`tick_limits`)."""
     critical: bool
+    speed_limit: int
+    """Velocity Limit (44) in velocity units, read at start-up (the wheel's clamp)."""
+    shutdown: int = 0x34
+    """Shutdown (63): the error bits that latch and turn torque off (read at start-up)."""
+    state: State = "ok"
     failures: int = 0
-    degraded: bool = False
     next_probe: float = 0.0
+    boot_deadline: float = 0.0
     goal: int | None = None
     """The goal to hold: ticks (position joints) or velocity units (the wheel)."""
     sent: int | None = None
+    addressed_at: float = 0.0
+    """When a packet last addressed it (what feeds its Bus Watchdog)."""
+    warning: int = 0
+    """Non-latching Hardware Error Status bits last seen (input voltage, by default)."""
+    next_check: float = 0.0
+    """While a warning stands (every status has the Alert bit), when to read 70 again."""
+    from_degraded: bool = False
+    """Booting after a probe found it degraded with a latched error: back means recovered."""
 
     @property
     def name(self) -> str:
         return f"servo {self.id} ({LEG_NAMES[self.leg]} {JOINT_NAMES[self.joint]})"
+
+    @property
+    def live(self) -> bool:
+        """In the cycle: neither booting nor degraded."""
+        return self.state == "ok"
+
+    def clamp_tick(self, tick: int) -> int:
+        return min(max(tick, self.lo_tick), self.hi_tick)
 
 
 @dataclass(slots=True)
@@ -151,7 +268,7 @@ class _Read:
             if now < self.next_due:
                 return []
             self.next_due = max(self.next_due + 1.0 / self.spec.rate_hz, now)
-        live = [s for s in self.servos if not s.degraded]
+        live = [s for s in self.servos if s.live]
         chunk = self.spec.chunk
         if chunk is None or chunk >= len(live):
             return live
@@ -168,6 +285,14 @@ class _Request:
 
 
 @dataclass(slots=True)
+class _Write:
+    """One Sync Write of a cycle: the register, and the value sent to each servo."""
+
+    register: ct.Register
+    values: dict[int, int]
+
+
+@dataclass(slots=True)
 class _Outcome:
     """What the port owner did in one cycle (built in the port's thread, read on the loop)."""
 
@@ -180,10 +305,7 @@ class _Outcome:
 
 
 def _cycle_job(
-    requests: Sequence[_Request],
-    fast: bool,
-    retries: int,
-    writes: Sequence[tuple[int, int, dict[int, bytes]]],
+    requests: Sequence[_Request], fast: bool, retries: int, writes: Sequence[_Write]
 ) -> Callable[[DxlBus], _Outcome]:
     """The port-side half of a cycle: the due reads (with retries), then the goal writes."""
 
@@ -218,10 +340,11 @@ def _cycle_job(
                 remaining = remaining[1:]
                 attempts = 0
             out.reads.append(merged)
-        for start, length, values in writes:
-            if values:
-                out.write_results.append(bus.sync_write(start, length, values))
-                out.bytes += sync_write_bytes(len(values), length)
+        for w in writes:
+            size = w.register.size
+            data = {sid: w.register.encode(v) for sid, v in w.values.items()}
+            out.write_results.append(bus.sync_write(w.register.address, size, data))
+            out.bytes += sync_write_bytes(len(data), size)
         return out
 
     return job
@@ -240,6 +363,27 @@ def _enable_job(servos: Sequence[_Servo]) -> Callable[[DxlBus], SyncReadResult]:
         return bus.sync_read(ids, _TORQUE.address, 1)
 
     return job
+
+
+def _ping_job(ids: Sequence[int]) -> Callable[[DxlBus], dict[int, Reply]]:
+    return lambda bus: {i: bus.ping(i) for i in ids}
+
+
+def _read_job(sid: int, reg: ct.Register) -> Callable[[DxlBus], Reply]:
+    return lambda bus: bus.read(sid, reg)
+
+
+def _read_all(bus: DxlBus, ids: Sequence[int], span: ct.Block) -> dict[int, dict[str, int]]:
+    """``span`` of every servo in ``ids``; a servo that does not answer is left out."""
+    out: dict[int, dict[str, int]] = {}
+    remaining = list(ids)
+    while remaining:
+        res = bus.sync_read(remaining, span.start, span.length)
+        out.update({sid: span.decode(data) for sid, data in res.data.items()})
+        if res.ok or res.failed is None:
+            break
+        remaining = remaining[remaining.index(res.failed) + 1 :]
+    return out
 
 
 class BusScheduler(Actor):
@@ -276,18 +420,23 @@ class BusScheduler(Actor):
             for j, sid in enumerate(leg_spec.servo_ids):
                 joint = self.cfg.joints.by_name(JOINT_NAMES[j])
                 limits = joint.limits_rad
+                model = ct.model(joint.model)
                 # Goal Position spans one turn, 0…4095 around the centre (2048).
                 lo = max(limits[0], ct.ticks_to_rad(0)) if limits else -math.inf
                 hi = min(limits[1], ct.ticks_to_rad(ct.TICKS_PER_REV - 1)) if limits else math.inf
+                lo_tick, hi_tick = tick_limits(lo, hi) if limits else (0, ct.TICKS_PER_REV - 1)
                 self.servos[sid] = _Servo(
                     sid,
                     leg,
                     j,
-                    ct.model(joint.model),
+                    model,
                     joint.endless,
                     lo,
                     hi,
+                    lo_tick,
+                    hi_tick,
                     JOINT_NAMES[j] in CRITICAL_JOINTS,
+                    model.register("velocity_limit").initial or 0,
                 )
         self.by_joint = {(s.leg, s.joint): s for s in self.servos.values()}
         ordered = sorted(self.servos.values(), key=lambda s: s.id)
@@ -303,9 +452,22 @@ class BusScheduler(Actor):
         self.fast = self.plan.fast_sync_read == "on"
         self.fast_streak = 0
         self.cycle = 0
-        self.counters = {"retries": 0, "timeouts": 0, "corrupt": 0, "clamped": 0, "bytes": 0}
+        self.counters = {
+            "retries": 0,
+            "timeouts": 0,
+            "corrupt": 0,
+            "clamped": 0,
+            "bytes": 0,
+            "write_failures": 0,
+        }
         # Return Delay Time register value (2 µs units), written at start and on restore.
         self.rdt = ct.return_delay_units(self.cfg.bus.return_delay_time_us * 1e-6)
+        self.watchdog_units = round(self.cfg.bus.watchdog_ms / 1000 / _WATCHDOG_UNIT_S)
+        # Every servo hears a packet at least twice per watchdog period.
+        self.keepalive_s = self.watchdog_units * _WATCHDOG_UNIT_S / 2 or math.inf
+        self.nominal_s = DEFAULT_NOMINAL_S
+        self.measured = False
+        self.supply_low = False
         self.port_lost = False
         self.lost = False
         """Set with :class:`BusLost`: the cycle stops; only the safe stop touches the bus."""
@@ -345,50 +507,122 @@ class BusScheduler(Actor):
             )
         return ThreadPortOwner(open_port(name, self.cfg.bus.baudrate))
 
+    # ----------------------------------------------------------------- start-up
+
     async def _start_up(self, owner: PortOwner) -> None:
         servos = sorted(self.servos.values(), key=lambda s: s.id)
+        await self._ping_all(owner, servos)
         ids = [s.id for s in servos]
-        pings = await owner.call(lambda bus: {i: bus.ping(i) for i in ids})
-        missing = [self.servos[i].name for i, r in pings.items() if not r.ok]
-        if missing:
-            raise DeviceGoneError(f"no answer at start-up from {', '.join(missing)}")
-        wrong = [
-            f"{s.name} is a {ct.model_name(pings[s.id].value)} (model {pings[s.id].value}); "
-            f"the configuration says {s.model.name} (model {s.model.model_number})"
-            for s in servos
-            if pings[s.id].value != s.model.model_number
-        ]
-        if wrong:
-            raise DeviceError("servo model mismatch: " + "; ".join(wrong))
-        rdt = self.rdt
+        survey = await owner.call(lambda bus: _read_all(bus, ids, _SURVEY))
+        silent = [s.name for s in servos if s.id not in survey]
+        if silent:
+            raise DeviceGoneError(f"no answer reading the settings of {', '.join(silent)}")
+        for s in servos:
+            s.speed_limit = survey[s.id]["velocity_limit"]
+            s.shutdown = survey[s.id]["shutdown"]
+        stopped = [sid for sid, regs in survey.items() if regs["bus_watchdog"] == _WATCHDOG_ERROR]
+        if stopped:
+            self.emit(WatchdogStopped(t=self.now(), source=self.name, servo_ids=tuple(stopped)))
+            await owner.call(lambda bus: [bus.write(sid, _WATCHDOG, 0) for sid in stopped])
+        # EEPROM only where it differs; torque off only where EEPROM must change.
+        changes: dict[int, list[tuple[ct.Register, int]]] = {}
+        for s in servos:
+            mode = _MODE_VELOCITY if s.endless else _MODE_POSITION
+            have = survey[s.id]
+            wanted = ((_RETURN_DELAY, self.rdt), (_OPERATING_MODE, mode))
+            diff = [(reg, v) for reg, v in wanted if have[reg.name] != v]
+            if diff:
+                changes[s.id] = diff
+        if changes:
+            problems = await owner.call(self._configure_job(changes))
+            if problems:
+                raise DeviceError("servo set-up failed: " + "; ".join(problems))
+        await self._detect_fast(owner, "start-up")
+        holding = [s for s in servos if s.id not in changes and survey[s.id]["torque_enable"] == 1]
+        limp = [s for s in servos if s not in holding]
+        for s in servos:
+            if s.endless:
+                s.goal = 0  # a wheel starts still, whatever it did before
+            else:
+                which = "goal_position" if s in holding else "present_position"
+                s.goal = self._start_goal(s, survey[s.id][which])
+        # Servos that hold on: their goal goes out only if it had to change.
+        kept = {s.id: s.goal for s in holding if s.goal is not None}
+        wheels_on = {s.id: 0 for s in holding if s.endless}
+        moved = {
+            sid: g
+            for sid, g in kept.items()
+            if not self.servos[sid].endless and g != survey[sid]["goal_position"]
+        }
 
+        def hold(bus: DxlBus) -> None:
+            bus.sync_write(_GOAL_POSITION.address, 4, {i: _pack_i32(g) for i, g in moved.items()})
+            still = {i: _pack_i32(v) for i, v in wheels_on.items()}
+            bus.sync_write(_GOAL_VELOCITY.address, 4, still)
+
+        await owner.call(hold)
+        for s in holding:
+            s.sent = s.goal
+        if limp:
+            await self._enable_torque(owner, limp)
+        await self._arm_watchdog(owner, servos)
+        for s in servos:
+            s.addressed_at = self.now()
+
+    async def _ping_all(self, owner: PortOwner, servos: Sequence[_Servo]) -> None:
+        """Ping every servo, in rounds while some are still booting (``bus.boot_timeout_s``)."""
+        deadline = self.now() + self.cfg.bus.boot_timeout_s
+        todo = list(servos)
+        while True:
+            ids = [s.id for s in todo]
+            pings = await owner.call(_ping_job(ids))
+            wrong = [
+                f"{s.name} is a {ct.model_name(pings[s.id].value)} (model {pings[s.id].value}); "
+                f"the configuration says {s.model.name} (model {s.model.model_number})"
+                for s in todo
+                if pings[s.id].ok and pings[s.id].value != s.model.model_number
+            ]
+            if wrong:
+                raise DeviceError("servo model mismatch: " + "; ".join(wrong))
+            todo = [s for s in todo if not pings[s.id].ok]
+            if not todo:
+                return
+            if self.now() >= deadline:
+                names = ", ".join(s.name for s in todo)
+                raise DeviceGoneError(f"no answer at start-up from {names}")
+            await self.clock.sleep(START_RETRY_S)
+
+    def _configure_job(
+        self, changes: Mapping[int, Sequence[tuple[ct.Register, int]]]
+    ) -> Callable[[DxlBus], list[str]]:
         def configure(bus: DxlBus) -> list[str]:
             problems = []
-            bus.sync_write(_TORQUE.address, 1, dict.fromkeys(ids, b"\x00"))  # EEPROM needs it
-            for s in servos:
-                mode = _MODE_VELOCITY if s.endless else _MODE_POSITION
-                for reg, value in ((_RETURN_DELAY, rdt), (_OPERATING_MODE, mode)):
-                    reply = bus.write(s.id, reg, value)
+            bus.sync_write(_TORQUE.address, 1, dict.fromkeys(changes, b"\x00"))  # EEPROM needs it
+            for sid, diff in changes.items():
+                for reg, value in diff:
+                    reply = bus.write(sid, reg, value)
                     if not reply.ok or reply.error & ~ALERT:
-                        problems.append(f"{s.name}: writing {reg.name} = {value} failed")
+                        name = self.servos[sid].name
+                        problems.append(f"{name}: writing {reg.name} = {value} failed")
             return problems
 
-        problems = await owner.call(configure)
-        if problems:
-            raise DeviceError("servo set-up failed: " + "; ".join(problems))
-        await self._detect_fast(owner, "start-up")
-        positions = await owner.call(
-            lambda bus: bus.sync_read(ids, _REG_POSITION.address, _REG_POSITION.size)
-        )
-        if not positions.ok:
-            raise DeviceGoneError(
-                f"reading present positions at start-up: {comm_name(positions.result)} "
-                f"at servo {positions.failed}"
+        return configure
+
+    def _start_goal(self, s: _Servo, tick: int) -> int:
+        """A start-up goal (a present or held position) within the limits, an event if not."""
+        inside = s.clamp_tick(tick)
+        if inside != tick:
+            self.counters["clamped"] += 1
+            self.emit(
+                GoalClamped(
+                    t=self.now(),
+                    source=self.name,
+                    servo_id=s.id,
+                    requested_rad=ct.ticks_to_rad(tick),
+                    sent_rad=ct.ticks_to_rad(inside),
+                )
             )
-        for s in servos:
-            s.goal = 0 if s.endless else _REG_POSITION.decode(positions.data[s.id], 132)
-            s.sent = None
-        await self._enable_torque(owner, servos)
+        return inside
 
     async def _enable_torque(self, owner: PortOwner, servos: Sequence[_Servo]) -> None:
         """Write each goal (so torque-on holds still), then torque on, verified, with retries."""
@@ -404,12 +638,18 @@ class BusScheduler(Actor):
         names = ", ".join(s.name for s in todo)
         raise DeviceError(f"torque could not be enabled on {names} after {attempts} attempts")
 
+    async def _arm_watchdog(self, owner: PortOwner, servos: Iterable[_Servo]) -> None:
+        """Set Bus Watchdog (98) to ``bus.watchdog_ms`` (0: off) on ``servos``."""
+        units = bytes((self.watchdog_units,))
+        ids = dict.fromkeys((s.id for s in servos), units)
+        await owner.call(lambda bus: bus.sync_write(_WATCHDOG.address, 1, ids))
+
     async def _detect_fast(self, owner: PortOwner, why: str) -> None:
         """Try Fast Sync Read of the first read; keep it only if it works (``auto`` plans)."""
         if self.plan.fast_sync_read != "auto":
             return
         first = self.reads[0]
-        ids = [s.id for s in first.servos if not s.degraded]
+        ids = [s.id for s in first.servos if s.live]
         start, length = first.block.start, first.block.length
 
         def probe(bus: DxlBus) -> bool:
@@ -430,50 +670,107 @@ class BusScheduler(Actor):
         self.fast = works
         self.fast_streak = 0
 
-    # ----------------------------------------------------------------- the cycle
+    # ----------------------------------------------------------------- goals
 
     def _take_goals(self) -> None:
         inbox = self.goals
         if not inbox.connected:
             return
-        for msg in inbox.drain():
+        messages = inbox.drain()
+        # Reflex goals last: for a joint both touched this cycle, the reflex wins.
+        for msg in [m for m in messages if not m.reflex] + [m for m in messages if m.reflex]:
             for g in msg.goals:
-                servo = self.by_joint.get((g.leg, g.joint))
-                if servo is None:
-                    continue
-                if servo.endless:
-                    if g.velocity_rad_s is not None and math.isfinite(g.velocity_rad_s):
-                        servo.goal = ct.rad_s_to_velocity(g.velocity_rad_s)
-                    continue
-                want = g.position_rad
-                if want is None or math.isnan(want):
-                    continue
-                sent = min(max(want, servo.lo), servo.hi)
-                if sent != want:
-                    self.counters["clamped"] += 1
-                    self.emit(
-                        GoalClamped(
-                            t=self.now(),
-                            source=self.name,
-                            servo_id=servo.id,
-                            requested_rad=want,
-                            sent_rad=sent,
-                        )
-                    )
-                servo.goal = ct.rad_to_ticks(sent)
+                self._take(g)
 
-    def _writes(self) -> list[tuple[int, int, dict[int, bytes]]]:
-        pos: dict[int, bytes] = {}
-        vel: dict[int, bytes] = {}
+    def _refuse(self, g: JointGoal, reason: str) -> None:
+        self.emit(
+            GoalRefused(t=self.now(), source=self.name, leg=g.leg, joint=g.joint, reason=reason)
+        )
+
+    def _take(self, g: JointGoal) -> None:
+        servo = self.by_joint.get((g.leg, g.joint))
+        if servo is None:
+            self._refuse(g, f"no joint {g.joint} on leg {g.leg} (legs 0–5, joints 0–6)")
+            return
+        if servo.endless:
+            self._take_speed(servo, g)
+            return
+        want = g.position_rad
+        if want is None:
+            what = "a speed" if g.velocity_rad_s is not None else "no goal"
+            self._refuse(g, f"{what} for {servo.name}, a positioned joint: give position_rad")
+            return
+        if not math.isfinite(want):
+            self._refuse(g, f"position_rad = {want!r} for {servo.name}: not a finite number")
+            return
+        sent = min(max(want, servo.lo), servo.hi)
+        if abs(want - sent) > ABSURD_TURNS * 2 * math.pi:
+            self._refuse(
+                g,
+                f"position_rad = {want!r} for {servo.name}: more than a turn beyond its "
+                f"limits ({servo.lo:.3f}…{servo.hi:.3f} rad)",
+            )
+            return
+        if sent != want:
+            self.counters["clamped"] += 1
+            self.emit(
+                GoalClamped(
+                    t=self.now(),
+                    source=self.name,
+                    servo_id=servo.id,
+                    requested_rad=want,
+                    sent_rad=sent,
+                )
+            )
+        servo.goal = servo.clamp_tick(ct.rad_to_ticks(sent))
+
+    def _take_speed(self, servo: _Servo, g: JointGoal) -> None:
+        speed = g.velocity_rad_s
+        if g.position_rad is not None or speed is None:
+            what = "a position" if g.position_rad is not None else "no goal"
+            self._refuse(g, f"{what} for {servo.name}, a wheel: give velocity_rad_s")
+            return
+        limit = ct.velocity_to_rad_s(servo.speed_limit)
+        if not math.isfinite(speed) or abs(speed) > ABSURD_SPEED_FACTOR * limit:
+            self._refuse(
+                g,
+                f"velocity_rad_s = {speed!r} for {servo.name}: not a speed "
+                f"(its Velocity Limit is {limit:.3f} rad/s)",
+            )
+            return
+        units = max(-servo.speed_limit, min(servo.speed_limit, ct.rad_s_to_velocity(speed)))
+        if abs(speed) > limit:
+            self.counters["clamped"] += 1
+            self.emit(
+                GoalClamped(
+                    t=self.now(),
+                    source=self.name,
+                    servo_id=servo.id,
+                    requested_rad=speed,
+                    sent_rad=ct.velocity_to_rad_s(units),
+                    unit="rad/s",
+                )
+            )
+        servo.goal = units
+
+    def _writes(self, now: float) -> list[_Write]:
+        """Goals that changed, and those of servos the watchdog would soon miss."""
+        pos: dict[int, int] = {}
+        vel: dict[int, int] = {}
+        stale = now - self.keepalive_s
         for s in self.servos.values():
-            if s.degraded or s.goal is None or s.goal == s.sent:
+            if not s.live or s.goal is None:
                 continue
-            if s.endless:
-                vel[s.id] = _pack_i32(s.goal)
-            else:
-                pos[s.id] = _pack_i32(s.goal)
-            s.sent = s.goal
-        return [(_GOAL_POSITION.address, 4, pos), (_GOAL_VELOCITY.address, 4, vel)]
+            if s.goal != s.sent or s.addressed_at <= stale:
+                (vel if s.endless else pos)[s.id] = s.goal
+        writes = []
+        if pos:
+            writes.append(_Write(_GOAL_POSITION, pos))
+        if vel:
+            writes.append(_Write(_GOAL_VELOCITY, vel))
+        return writes
+
+    # ----------------------------------------------------------------- the cycle
 
     async def _cycle(self, owner: PortOwner) -> None:
         t = self.now()
@@ -487,12 +784,15 @@ class BusScheduler(Actor):
             _Request(r.block.start, r.block.length, tuple(s.id for s in servos))
             for r, servos in due
         ]
-        outcome = await owner.call(
-            _cycle_job(requests, self.fast, self.cfg.bus.retries, self._writes())
-        )
+        writes = self._writes(t)
+        outcome = await owner.call(_cycle_job(requests, self.fast, self.cfg.bus.retries, writes))
         self.cycle += 1
         self.counters["retries"] += outcome.retries
         self.counters["bytes"] += outcome.bytes
+        for req in requests:
+            for sid in req.ids:
+                self.servos[sid].addressed_at = t
+        self._account_writes(t, writes, outcome.write_results)
         if outcome.fast_failures:
             self.fast_streak += 1
             if self.fast_streak >= FAST_FALLBACK_AFTER:
@@ -520,7 +820,34 @@ class BusScheduler(Actor):
             errors.update(res.errors)
         await self._publish(t, values, errors)
         self._account(outcome, values)
-        await self._recover(owner, values, errors)
+        healthy = not outcome.failed and not outcome.retries
+        busy = await self._recover(owner, values, errors)
+        if healthy and not busy:
+            # The nominal cycle: what a cycle costs when nothing goes wrong.
+            took = self.now() - t
+            w = NOMINAL_SMOOTHING if self.measured else 1.0
+            self.nominal_s += w * (took - self.nominal_s)
+            self.measured = True
+
+    def _account_writes(self, t: float, writes: Sequence[_Write], results: Sequence[int]) -> None:
+        for w, result in zip(writes, results, strict=True):
+            if result == COMM_SUCCESS:
+                for sid, value in w.values.items():
+                    s = self.servos[sid]
+                    s.sent = value
+                    s.addressed_at = t
+                continue
+            # Not sent: ``sent`` stays as it was, so these goals go out next cycle.
+            self.counters["write_failures"] += 1
+            self.emit(
+                WriteFailed(
+                    t=self.now(),
+                    source=self.name,
+                    register=w.register.name,
+                    servos=len(w.values),
+                    result=comm_name(result),
+                )
+            )
 
     async def _publish(
         self, t: float, values: Mapping[int, Mapping[str, int]], errors: Mapping[int, int]
@@ -583,14 +910,14 @@ class BusScheduler(Actor):
                     consecutive=s.failures,
                 )
             )
-            if s.failures >= self.cfg.bus.degrade_after and not s.degraded:
+            if s.failures >= self.cfg.bus.degrade_after and s.live:
                 self._degrade(s, f"{s.failures} failed cycles in a row ({kind})")
 
     def _degrade(self, s: _Servo, reason: str) -> None:
         s.next_probe = self.now() + self.cfg.bus.probe_period_s
-        if s.degraded:  # a failed probe of a degraded servo: it stays degraded, no new event
+        if s.state == "degraded":  # a failed probe of a degraded servo: no new event
             return
-        s.degraded = True
+        s.state = "degraded"
         self.emit(ServoDegraded(t=self.now(), source=self.name, servo_id=s.id, reason=reason))
         if s.critical:
             self._lose(f"{s.name} lost: {reason}")
@@ -600,91 +927,193 @@ class BusScheduler(Actor):
         self.emit(BusLost(t=self.now(), source=self.name, reason=reason))
         self.request_safe_stop(reason)
 
+    # ----------------------------------------------------------------- recovery
+
     async def _recover(
         self,
         owner: PortOwner,
         values: Mapping[int, Mapping[str, int]],
         errors: Mapping[int, int],
-    ) -> None:
-        # Hardware errors: the Alert bit of any status, or a non-zero register 70.
-        suspects = sorted(
-            {sid for sid, err in errors.items() if err & ALERT}
-            | {sid for sid, regs in values.items() if regs.get("hardware_error_status")}
-        )
-        for sid in suspects:
+    ) -> bool:
+        """Hardware errors, warnings, booting and degraded servos; True if the bus was used."""
+        busy = False
+        for sid in sorted(set(errors) | set(values)):
             s = self.servos[sid]
-            if not s.degraded:
-                await self._reboot(owner, s)
-        now = self.now()
-        for s in self.servos.values():
-            if s.degraded and now >= s.next_probe:
-                s.next_probe = now + self.cfg.bus.probe_period_s
-                await self._probe(owner, s)
+            if not s.live:
+                continue
+            alert = bool(errors.get(sid, 0) & ALERT)
+            bits = values.get(sid, {}).get("hardware_error_status")
+            now = self.now()
+            if bits is None and alert and (not s.warning or now >= s.next_check):
+                # An alert and no register read this cycle: ask the servo what it is
+                # (again now and then while a warning stands: something may latch on top).
+                reply = await owner.call(_read_job(sid, _HW_ERROR))
+                busy = True
+                bits = reply.value if reply.ok else None
+                s.next_check = now + WARNING_RECHECK_S
+            if bits is None:
+                if not alert and sid in errors and s.warning:
+                    bits = 0  # a clean status: the warning is over
+                else:
+                    continue
+            self._warn(s, bits & ~s.shutdown)
+            if bits & s.shutdown:
+                await self._reboot(owner, s, bits)
+                busy = True
+        self._supply()
+        return await self._poll(owner) or busy
 
-    async def _reboot(self, owner: PortOwner, s: _Servo) -> bool:
-        """Report, reboot and restore ``s``; True when its error cleared and it holds again."""
-        bits = await owner.call(lambda bus: bus.read(s.id, _HW_ERROR))
-        value = bits.value if bits.ok else 0
+    def _warn(self, s: _Servo, bits: int) -> None:
+        """Report a change of ``s``'s non-latching error bits."""
+        if bits == s.warning:
+            return
+        changed = bits if bits else s.warning
+        s.warning = bits
+        self.emit(
+            HardwareWarning(
+                t=self.now(),
+                source=self.name,
+                servo_id=s.id,
+                bits=changed,
+                description=ct.HardwareError(changed).describe(),
+                active=bool(bits),
+            )
+        )
+
+    def _supply(self) -> None:
+        low = tuple(
+            sorted(s.id for s in self.servos.values() if s.warning & ct.HardwareError.INPUT_VOLTAGE)
+        )
+        if low and not self.supply_low:
+            self.supply_low = True
+            self.emit(SupplyLow(t=self.now(), source=self.name, servo_ids=low))
+        elif not low and self.supply_low:
+            self.supply_low = False
+            self.emit(SupplyRestored(t=self.now(), source=self.name))
+
+    async def _reboot(self, owner: PortOwner, s: _Servo, bits: int) -> None:
+        """Report and reboot ``s``; it boots while the cycle goes on (see :meth:`_poll`)."""
         self.emit(
             HardwareFault(
                 t=self.now(),
                 source=self.name,
                 servo_id=s.id,
-                bits=value,
-                description=ct.HardwareError(value).describe(),
+                bits=bits,
+                description=ct.HardwareError(bits).describe(),
             )
         )
         reply = await owner.call(lambda bus: bus.reboot(s.id))
         self.emit(ServoRebooted(t=self.now(), source=self.name, servo_id=s.id, ok=reply.ok))
-        after = await owner.call(lambda bus: bus.read(s.id, _HW_ERROR))
-        if not after.ok or after.value:
-            why = (
-                comm_name(after.result)
-                if not after.ok
-                else ct.HardwareError(after.value).describe()
-            )
-            self._degrade(s, f"hardware error persists after reboot ({why})")
+        s.state = "booting"
+        s.warning = 0
+        s.boot_deadline = self.now() + self.cfg.bus.boot_timeout_s
+        s.next_probe = self.now() + BOOT_POLL_S
+
+    def _probe_timeout_ms(self) -> float:
+        """A probe's wait: within one nominal cycle, so a cycle takes at most two."""
+        return max(MIN_PROBE_TIMEOUT_MS, 0.8 * self.nominal_s * 1000.0)
+
+    async def _poll(self, owner: PortOwner) -> bool:
+        """Ping the booting or degraded servo whose turn has come (one per cycle at most)."""
+        now = self.now()
+        waiting = [s for s in self.servos.values() if not s.live and now >= s.next_probe]
+        if not waiting:
             return False
-        if await self._restore(owner, s):
-            self.emit(ServoRestored(t=self.now(), source=self.name, servo_id=s.id))
+        s = min(waiting, key=lambda x: (x.next_probe, x.id))
+        timeout = self._probe_timeout_ms()
+        reply = await owner.call(lambda bus: bus.ping(s.id, timeout_ms=timeout))
+        if s.state == "booting":
+            if reply.ok:
+                await self._after_boot(owner, s, reply.alert)
+            elif self.now() >= s.boot_deadline:
+                self._degrade_after_boot(
+                    s, f"no answer {self.cfg.bus.boot_timeout_s:g} s after its reboot"
+                )
+            else:
+                s.next_probe = self.now() + BOOT_POLL_S
             return True
-        self._degrade(s, "torque could not be re-enabled after reboot")
-        return False
+        s.next_probe = self.now() + self.cfg.bus.probe_period_s
+        if not reply.ok:
+            return True
+        if reply.alert:
+            # A latched hardware error is rebooted first; the servo is back only if that
+            # cleared it (the boot restores it), never while the error persists.
+            bits = await owner.call(lambda bus: bus.read(s.id, _HW_ERROR))
+            await self._reboot(owner, s, bits.value if bits.ok else 0)
+            s.from_degraded = True
+            return True
+        if await self._restore(owner, s):
+            self._recovered(s)
+            await self._detect_fast(owner, f"{s.name} recovered")
+        return True
+
+    async def _after_boot(self, owner: PortOwner, s: _Servo, alert: bool) -> None:
+        """``s`` answers after its reboot: restore it, unless its error came back."""
+        if alert:
+            bits = await owner.call(lambda bus: bus.read(s.id, _HW_ERROR))
+            why = ct.HardwareError(bits.value).describe() if bits.ok else comm_name(bits.result)
+            self._degrade_after_boot(s, f"hardware error persists after reboot ({why})")
+            return
+        if not await self._restore(owner, s):
+            self._degrade_after_boot(s, "torque could not be re-enabled after reboot")
+            return
+        self.emit(ServoRestored(t=self.now(), source=self.name, servo_id=s.id))
+        if s.from_degraded:
+            self._recovered(s)
+            await self._detect_fast(owner, f"{s.name} recovered")
+        else:
+            s.state = "ok"
+            s.failures = 0
+
+    def _degrade_after_boot(self, s: _Servo, reason: str) -> None:
+        """A reboot did not bring ``s`` back: degraded (an event unless it already was)."""
+        s.state = "degraded" if s.from_degraded else "ok"
+        s.from_degraded = False
+        self._degrade(s, reason)
+
+    def _recovered(self, s: _Servo) -> None:
+        s.state = "ok"
+        s.failures = 0
+        s.from_degraded = False
+        self.emit(ServoRecovered(t=self.now(), source=self.name, servo_id=s.id))
 
     async def _restore(self, owner: PortOwner, s: _Servo) -> bool:
-        """Write the servo's settings and goal again and enable its torque; True when it holds."""
-        rdt = self.rdt
+        """Write the servo's settings and goal again and enable its torque; True when it holds.
+
+        EEPROM is read first and written only where it differs (a reboot keeps it);
+        Bus Watchdog, goal and torque are RAM, lost in a reboot: written again.
+        """
         mode = _MODE_VELOCITY if s.endless else _MODE_POSITION
         goal_reg = _GOAL_VELOCITY if s.endless else _GOAL_POSITION
+        wanted = ((_RETURN_DELAY, self.rdt), (_OPERATING_MODE, mode))
+        units = self.watchdog_units
 
         def restore(bus: DxlBus) -> bool:
-            bus.write(s.id, _TORQUE, 0)
-            bus.write(s.id, _RETURN_DELAY, rdt)
-            bus.write(s.id, _OPERATING_MODE, mode)
+            have = _read_all(bus, [s.id], _SETTINGS).get(s.id)
+            if have is None:
+                return False
+            diff = [(reg, v) for reg, v in wanted if have[reg.name] != v]
+            if diff:
+                bus.write(s.id, _TORQUE, 0)
+                for reg, value in diff:
+                    bus.write(s.id, reg, value)
+            if bus.read(s.id, _WATCHDOG).value == _WATCHDOG_ERROR:
+                bus.write(s.id, _WATCHDOG, 0)
             if s.goal is not None:
                 bus.write(s.id, goal_reg, s.goal)
             for _ in range(self.cfg.bus.torque_retries):
                 if bus.write(s.id, _TORQUE, 1).ok and bus.read(s.id, _TORQUE).value == 1:
+                    bus.write(s.id, _WATCHDOG, units)
                     return True
             return False
 
         ok = await owner.call(restore)
         if ok:
             s.sent = s.goal
+            s.addressed_at = self.now()
         return ok
 
-    async def _probe(self, owner: PortOwner, s: _Servo) -> None:
-        reply = await owner.call(lambda bus: bus.ping(s.id))
-        if not reply.ok:
-            return
-        # A latched hardware error is rebooted first; the servo is back only if that cleared
-        # it (the reboot restores it), never while the error persists.
-        restored = await self._reboot(owner, s) if reply.alert else await self._restore(owner, s)
-        if restored:
-            s.degraded = False
-            s.failures = 0
-            self.emit(ServoRecovered(t=self.now(), source=self.name, servo_id=s.id))
-            await self._detect_fast(owner, f"{s.name} recovered")
+    # ----------------------------------------------------------------- statistics
 
     _stats_t = 0.0
     _stats_cycle = 0
@@ -711,7 +1140,8 @@ class BusScheduler(Actor):
                 timeouts=c["timeouts"],
                 corrupt=c["corrupt"],
                 clamped=c["clamped"],
-                degraded=tuple(sorted(s.id for s in self.servos.values() if s.degraded)),
+                degraded=tuple(sorted(s.id for s in self.servos.values() if not s.live)),
+                write_failures=c["write_failures"],
             )
         )
         self._stats_t, self._stats_cycle, self._stats_bytes = now, self.cycle, c["bytes"]
@@ -753,10 +1183,24 @@ class BusScheduler(Actor):
         await self._park(self.cfg.bus.on_stop)
 
     async def _park(self, how: str) -> None:
-        if self.port_lost or how == "hold":
+        """Wheels to zero speed, then torque off (or hold, the watchdog disarmed)."""
+        if self.port_lost:
             return
-        ids = dict.fromkeys((s.id for s in self.servos.values() if not s.degraded), b"\x00")
+        live = [s for s in self.servos.values() if s.state != "degraded"]
+        wheels = {s.id: _pack_i32(0) for s in live if s.endless}
+        ids = [s.id for s in live]
+
+        def park(bus: DxlBus) -> None:
+            bus.sync_write(_GOAL_VELOCITY.address, 4, wheels)
+            if how == "hold":
+                bus.sync_write(_WATCHDOG.address, 1, dict.fromkeys(ids, b"\x00"))
+            else:
+                bus.sync_write(_TORQUE.address, 1, dict.fromkeys(ids, b"\x00"))
+
         try:
-            await self.owner.call(lambda bus: bus.sync_write(_TORQUE.address, 1, ids))
+            await self.owner.call(park)
         except DeviceGoneError:
             self.port_lost = True
+        for s in live:
+            if s.endless:
+                s.goal = s.sent = 0

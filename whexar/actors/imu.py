@@ -37,9 +37,13 @@ Failures never end the actor, except a wrong device at start:
   reader reads the configuration back every ``retry_period_s``: a chip that
   reset itself (a brown-out leaves it powered down at its defaults) is
   reported down ("configuration lost") and configured again at once.
-* **Free fall**: an acceleration of exactly (0, 0, 0) has no gravity vector
-  and so no tilt (:func:`~whexar.kinematics.sensing.tilt_from_acceleration`
-  refuses it): the sample is published, its :class:`BodyTilt` is not.
+* **Not gravity**: eq. 5.6–5.7 hold only while the sensor feels gravity
+  alone. A sample whose acceleration is further than ``imu.gravity_tolerance_g``
+  from 1 g in magnitude — free fall, a shock, a chip that lost its
+  calibration or range — is published, its :class:`BodyTilt` is not
+  (:mod:`whexar.sensors.gravity`). The first such sample after plausible ones
+  is one :class:`AccelImplausible`, the first plausible one after them
+  :class:`AccelPlausible`.
 
 The tilt is in the sensor's own axes (roll from X/Z, pitch from Y/Z, as eq.
 5.6–5.7); mapping them onto the body frame is the consumer's business.
@@ -56,6 +60,8 @@ import anyio.to_thread
 from pydantic import Field
 
 from whexar.actors.messages import (
+    AccelImplausible,
+    AccelPlausible,
     BodyTilt,
     ImuSample,
     SensorLinkDown,
@@ -65,9 +71,9 @@ from whexar.actors.messages import (
 )
 from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
-from whexar.kinematics.sensing import tilt_from_acceleration
 from whexar.runtime.actor import Actor, ActorParams, Output
 from whexar.runtime.devices import DEVICES
+from whexar.sensors.gravity import GravityCheck
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sensors.lsm9ds1 import ODR_HZ, I2CBus, Lsm9ds1, Reading, Settings, settings
 
@@ -128,6 +134,7 @@ class ImuReader(Actor):
             spec.gyro_range_dps,
         )
         self.period_s = 1.0 / self.wanted.rate_hz
+        self.gravity = GravityCheck(spec.gravity_tolerance_g)
         self.stale_after_s = spec.stale_after_s
         if self.stale_after_s < STALE_MIN_PERIODS * self.period_s:
             raise UsageError(
@@ -257,10 +264,35 @@ class ImuReader(Actor):
                     gyro_dps=reading.gyro_dps,
                 )
             )
-        try:
-            roll, pitch = tilt_from_acceleration(*reading.accel_g)
-        except UsageError:
-            return  # free fall: no gravity vector, no tilt
+        verdict = self.gravity.check(reading.accel_g)
+        if verdict.change == "implausible":
+            self.emit(
+                AccelImplausible(
+                    t=t,
+                    source=self.name,
+                    link=self.link,
+                    sensor="imu",
+                    seq=seq,
+                    accel_g=reading.accel_g,
+                    magnitude_g=verdict.magnitude_g,
+                    tolerance_g=self.gravity.tolerance_g,
+                )
+            )
+        elif verdict.change == "plausible":
+            self.emit(
+                AccelPlausible(
+                    t=t,
+                    source=self.name,
+                    link=self.link,
+                    sensor="imu",
+                    seq=seq,
+                    magnitude_g=verdict.magnitude_g,
+                    withheld=verdict.withheld,
+                )
+            )
+        if verdict.tilt is None:
+            return  # not gravity: no tilt
+        roll, pitch = verdict.tilt
         await self.tilt.send(
             BodyTilt(
                 t=t,

@@ -34,8 +34,11 @@ class JointGoal(Message):
 class JointGoals(Message):
     """Goals for any set of joints; the latest goal per joint wins at the next bus cycle.
 
-    ``reflex`` marks an override from a reflex actor (it is logged as such; it
-    goes out in the very next cycle like every goal).
+    ``reflex`` marks an override from a reflex actor: in a cycle where both
+    arrive for the same joint, a reflex goal wins over any other, whatever
+    their order (among reflex goals the latest wins). A joint no reflex
+    touched keeps the rule "latest wins". Leg actors may therefore send their
+    goals every cycle without undoing a reflex that fired in the same cycle.
     """
 
     goals: tuple[JointGoal, ...]
@@ -91,15 +94,79 @@ class BusStats(Message):
     corrupt: int
     clamped: int
     degraded: tuple[int, ...]
+    write_failures: int = 0
+    """Sync Writes the port failed to send (their goals went out again next cycle)."""
 
 
 @message
 class GoalClamped(Event):
-    """A goal outside joint limits was clamped to ``sent_rad`` before it reached the wire."""
+    """A goal beyond a limit was clamped to ``sent_rad`` before it reached the wire.
+
+    A position beyond the joint's limits (rad), or a wheel speed beyond the
+    servo's Velocity Limit (``unit = "rad/s"``); a start-up goal too, when a
+    servo stands outside its joint's limits.
+    """
 
     servo_id: int
     requested_rad: float
     sent_rad: float
+    unit: str = "rad"
+
+
+@message
+class GoalRefused(Event):
+    """A goal that cannot be a command was dropped; the joint keeps its previous goal.
+
+    ``reason`` says why: not a finite number, absurdly far beyond the limits,
+    a position for a wheel or a speed for a positioned joint, a joint the
+    robot does not have.
+    """
+
+    leg: int
+    joint: int
+    reason: str
+
+
+@message
+class HardwareWarning(Event):
+    """Servo ``servo_id`` set (``active``) or cleared a Hardware Error Status bit that does not
+    latch: one outside its Shutdown mask (input voltage, by default). Torque stays on; no
+    reboot."""
+
+    servo_id: int
+    bits: int
+    description: str
+    active: bool
+
+
+@message
+class SupplyLow(Event):
+    """Servos report an input-voltage error: the supply is outside their limits (a brownout)."""
+
+    servo_ids: tuple[int, ...]
+
+
+@message
+class SupplyRestored(Event):
+    """No servo reports an input-voltage error any more."""
+
+
+@message
+class WriteFailed(Event):
+    """A Sync Write of ``register`` to ``servos`` servos did not go out (``result``); its goals
+    are sent again in the next cycle."""
+
+    register: str
+    servos: int
+    result: str
+
+
+@message
+class WatchdogStopped(Event):
+    """At start-up, servos were found stopped by their Bus Watchdog: the host before this one
+    stopped talking without a stop (a crash, a kill, a pulled cable). Cleared."""
+
+    servo_ids: tuple[int, ...]
 
 
 @message
@@ -185,13 +252,17 @@ class SensorFrame(Message):
 
     A group the frame did not carry is ``None``. ``seq`` is ``None`` for a
     plain thesis frame. ``missed`` counts frames lost just before this one.
-    Distances are metres, ``math.inf`` when nothing is within range; tilt
-    angles are radians (eq. 5.6–5.7).
+    Distances are as in :class:`ObstacleRanges`: metres, ``math.inf`` when
+    nothing is within range, ``None`` for a sensor that gives no reading.
+    Tilt angles are radians (eq. 5.6–5.7), ``None`` when the frame carries no
+    accelerometer, the configuration says none is fitted
+    (``sensor_board.accelerometer.fitted``) or its reading is not gravity
+    (:class:`AccelImplausible`).
     """
 
     seq: int | None
     ir_counts: tuple[int, int] | None
-    ir_distances_m: tuple[float, float] | None
+    ir_distances_m: tuple[float | None, float | None] | None
     fsr_counts: tuple[int, int, int, int, int, int] | None
     contacts: tuple[bool, bool, bool, bool, bool, bool] | None
     acc_counts: tuple[int, int, int] | None
@@ -204,14 +275,18 @@ class SensorFrame(Message):
 class ObstacleRanges(Message):
     """Distances (m) seen by the IR rangefinders on the right and left front legs (eq. 5.5).
 
-    ``math.inf``: nothing within ``ir.max_distance_mm``; nearer than
-    ``ir.min_distance_mm`` reads as that minimum (the sensor's output folds
-    back below its nearest calibrated distance, 5.3.5).
+    Per sensor: a distance in metres; ``math.inf``: nothing within
+    ``ir.max_distance_mm`` (the sensor answers, with a low voltage); ``None``:
+    no reading — the input is at 0 counts, 0 V, which a working rangefinder
+    never outputs (it gives about 0.4 V with nothing in range), so the sensor
+    is unplugged or unpowered and the space in front of it is unknown, not
+    free. Nearer than ``ir.min_distance_mm`` reads as that minimum (the
+    sensor's output folds back below its nearest calibrated distance, 5.3.5).
     """
 
     seq: int | None
     counts: tuple[int, int]
-    distances_m: tuple[float, float]
+    distances_m: tuple[float | None, float | None]
 
 
 @message
@@ -229,7 +304,9 @@ class BodyTilt(Message):
 
     ``sensor`` says which accelerometer: ``"board"`` (the sensor board's
     analog one) or ``"imu"`` (the LSM9DS1); ``accel_g`` is the reading in g
-    that gave the angles.
+    that gave the angles. Only a reading whose magnitude is within the
+    sensor's ``gravity_tolerance_g`` of 1 g gives a tilt
+    (:mod:`whexar.sensors.gravity`); others are :class:`AccelImplausible`.
     """
 
     seq: int | None
@@ -312,3 +389,32 @@ class SensorFrameRejected(Event):
     reason: str
     size: int
     excerpt: str
+
+
+@message
+class AccelImplausible(Event):
+    """The accelerometer ``sensor`` on ``link`` no longer reads gravity: no tilt from now on.
+
+    Its reading ``accel_g`` (frame or sample ``seq``) has a magnitude of
+    ``magnitude_g``, more than ``tolerance_g`` from 1 g: not fitted, unplugged,
+    falling, shaken or miscalibrated (:mod:`whexar.sensors.gravity`). Said once
+    when the readings turn implausible; :class:`AccelPlausible` ends it.
+    """
+
+    link: str
+    sensor: str
+    seq: int | None
+    accel_g: tuple[float, float, float]
+    magnitude_g: float
+    tolerance_g: float
+
+
+@message
+class AccelPlausible(Event):
+    """The accelerometer ``sensor`` on ``link`` reads gravity again after ``withheld`` readings."""
+
+    link: str
+    sensor: str
+    seq: int | None
+    magnitude_g: float
+    withheld: int

@@ -9,12 +9,17 @@ for each frame, publishes in the same loop iteration:
 
 * :class:`SensorFrame` — everything in the frame, raw and converted;
 * :class:`ObstacleRanges` — the IR distances by eq. 5.5 (calibration from
-  ``[ir]``), ``inf`` beyond ``ir.max_distance_mm``;
+  ``[ir]``): ``inf`` beyond ``ir.max_distance_mm``, ``None`` for an input at
+  0 counts — no reading: a rangefinder outputs about 0.4 V with nothing in
+  range, so 0 V is an unplugged or unpowered sensor, and the space in front
+  of it is unknown, not free;
 * :class:`LegLoads` — the FSR counts and per-leg contact flags, with the
   hysteresis of ``[fsr]`` (on at ``contact_on_counts``, off below
   ``contact_off_counts``);
-* :class:`BodyTilt` — roll and pitch from the board's accelerometer
-  (eq. 5.6–5.7), when the frame carries one.
+* :class:`BodyTilt` — roll and pitch from the board's analog accelerometer
+  (eq. 5.6–5.7), when ``sensor_board.accelerometer.fitted`` says there is one,
+  the frame carries it, and its reading is gravity: a magnitude within
+  ``gravity_tolerance_g`` of 1 g (:mod:`whexar.sensors.gravity`).
 
 Each is stamped with the time the frame was decoded and its sequence
 number. What goes wrong becomes an event, never an exception:
@@ -22,17 +27,26 @@ number. What goes wrong becomes an event, never an exception:
 * a rejected frame (garbage, bad checksum, out-of-range value) is
   :class:`SensorFrameRejected` and nothing of it is published;
 * a jump in ``seq`` is :class:`SensorFrameGap` (lost frames or a board reset);
+* an accelerometer reading that is not gravity gives no tilt and, when the
+  readings turn so, one :class:`AccelImplausible`; the first plausible one
+  after them is :class:`AccelPlausible`;
 * no valid frame for ``sensor_board.stale_after_frames`` frame periods is
   :class:`SensorLinkStale`, and the first valid frame after it
-  :class:`SensorLinkFresh`;
+  :class:`SensorLinkFresh`. The watch starts with the first valid frame of
+  each connection: opening the port resets an Arduino Mega (DTR) and its
+  bootloader keeps it silent for about a second, which is no staleness (a
+  link that went down was reported :class:`SensorLinkDown` already);
 * the device vanishing is :class:`SensorLinkDown`; the reader looks for it
   every ``reconnect_period_s`` and reports :class:`SensorLinkUp` when it is
-  back. Opening the port resets an Arduino Mega (DTR), so the first frame of
-  a connection never counts as a gap.
+  back. The reset on opening also means the first frame of a connection
+  never counts as a gap.
 
-After the first valid frame of each connection (when the board's bootloader
-has handed over to the sketch) the reader sends ``rate=N#`` so that the
-board's frame rate is the configured one.
+The board starts at its build's frame rate and forgets ``rate=N#`` when it
+resets. So after the first valid frame of each connection (when the
+bootloader has handed over to the sketch), and again after every restart
+the sequence numbers show on the same connection (a :class:`SensorFrameGap`
+with ``restarted``: a brown-out, the watchdog), the reader sends ``rate=N#``
+so that the board's frame rate is the configured one.
 
 The port is a device or a pty (pyserial-asyncio, :mod:`whexar.sensors.serial_link`),
 or ``emulator`` / ``emulator:NAME`` for the in-process board of
@@ -48,6 +62,8 @@ import anyio
 from pydantic import Field
 
 from whexar.actors.messages import (
+    AccelImplausible,
+    AccelPlausible,
     BodyTilt,
     LegLoads,
     ObstacleRanges,
@@ -60,13 +76,14 @@ from whexar.actors.messages import (
     SensorLinkUp,
     SensorStats,
 )
-from whexar.config import ConfigFile, RobotConfig, load_config
-from whexar.errors import DeviceGoneError, UsageError
-from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
+from whexar.config import BoardBaudrate, ConfigFile, RobotConfig, load_config
+from whexar.errors import DeviceGoneError
+from whexar.kinematics.sensing import ir_distance
 from whexar.runtime.actor import Actor, ActorParams, Output
 from whexar.runtime.devices import DEVICES
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.frame import Frame, FrameDecoder, Mode, Rejected
+from whexar.sensors.gravity import GravityCheck
 from whexar.sensors.serial_link import ByteLink, SerialLink
 
 EMULATOR: Final = SENSOR_BOARD.scheme
@@ -82,8 +99,8 @@ class SensorReader(Actor):
         """Robot configuration file; absent: the built-in defaults (= config/whexar.toml)."""
         port: str | None = None
         """Overrides ``sensor_board.port``: a device, a pty, ``emulator`` or ``emulator:NAME``."""
-        baudrate: int | None = Field(default=None, gt=0)
-        """Overrides ``sensor_board.baudrate``."""
+        baudrate: BoardBaudrate | None = None
+        """Overrides ``sensor_board.baudrate`` (a rate the board's firmware can run at)."""
         protocol: Mode | None = None
         """Overrides ``sensor_board.protocol``: ``checked`` or ``thesis``."""
         stats_period_s: float = Field(1.0, gt=0)
@@ -113,11 +130,15 @@ class SensorReader(Actor):
         self._fsr_on = self.cfg.fsr.contact_on_counts
         self._fsr_off = self.cfg.fsr.contact_off_counts
         acc = board.accelerometer
+        self._acc_fitted = acc.fitted
         self._acc = tuple(zip(acc.zero_g_counts, acc.counts_per_g, strict=True))
+        self.gravity = GravityCheck(acc.gravity_tolerance_g)
         self.contacts = [False] * 6
         self.last_valid = 0.0
         self.last_seq: int | None = None
         self.stale = False
+        self.watching = False
+        """Staleness is watched: a valid frame arrived on this connection."""
         self.reconnects = 0
         self._valid = anyio.Event()
         if self.port.startswith(f"{EMULATOR}:"):
@@ -125,8 +146,12 @@ class SensorReader(Actor):
 
     def _board(self) -> SensorBoardEmulator:
         if self.port == EMULATOR and (SENSOR_BOARD, EMULATOR) not in DEVICES:
-            rate = self.cfg.sensor_board.frame_rate_hz
-            board = SensorBoardEmulator(frame_rate_hz=rate, baudrate=self.baudrate)
+            spec = self.cfg.sensor_board
+            board = SensorBoardEmulator(
+                frame_rate_hz=spec.frame_rate_hz,
+                baudrate=self.baudrate,
+                accelerometer=spec.accelerometer.fitted,  # the board the configuration describes
+            )
             DEVICES.register(SENSOR_BOARD, EMULATOR, board)
         name = self.port.removeprefix(f"{EMULATOR}:")
         return DEVICES.get(SENSOR_BOARD, name, setting=f"port = {self.port!r}")
@@ -162,6 +187,7 @@ class SensorReader(Actor):
                 self.ready()
                 first = False
             if link is not None:
+                self.watching = False  # the board resets: silent until its first frame
                 self.emit(SensorLinkUp(t=self.now(), source=self.name, link=self.port))
                 try:
                     await self._read(link)
@@ -178,7 +204,7 @@ class SensorReader(Actor):
 
     async def _read(self, link: ByteLink) -> None:
         decoder = self.decoder
-        decoder.clear()
+        decoder.clear(tail_expected=True)  # a board that did not reset may be mid-frame
         told_rate = False
         while True:
             data = await link.receive()
@@ -195,6 +221,8 @@ class SensorReader(Actor):
                         )
                     )
                     continue
+                if item.restarted:
+                    told_rate = False  # a reset board is back at its build's rate
                 await self._publish(item)
                 if not told_rate:
                     told_rate = True
@@ -209,6 +237,7 @@ class SensorReader(Actor):
             )
         self.last_valid = t
         self.last_seq = frame.seq
+        self.watching = True
         self._valid.set()
         if frame.expected_seq is not None and (frame.missed or frame.restarted):
             self.emit(
@@ -224,7 +253,7 @@ class SensorReader(Actor):
             )
         distances = self._distances(frame.ir) if frame.ir is not None else None
         contacts = self._contacts(frame.fsr) if frame.fsr is not None else None
-        tilt = self._tilt(frame.acc) if frame.acc is not None else None
+        tilt = self._tilt(frame.acc, frame.seq) if frame.acc is not None else None
         name, seq = self.name, frame.seq
         if self.frames.connected:
             await self.frames.send(
@@ -266,12 +295,12 @@ class SensorReader(Actor):
 
     # ----------------------------------------------------------------- conversions
 
-    def _distances(self, counts: tuple[int, int]) -> tuple[float, float]:
+    def _distances(self, counts: tuple[int, int]) -> tuple[float | None, float | None]:
         k, e, nearest, farthest = self._ir
-        out = []
+        out: list[float | None] = []
         for c in counts:
             if c == 0:
-                out.append(math.inf)  # no reflected light at all: nothing in range
+                out.append(None)  # 0 V: no sensor output at all, so no reading
                 continue
             d = ir_distance(float(c), k, e)
             out.append(math.inf if d > farthest else max(d, nearest))
@@ -287,25 +316,53 @@ class SensorReader(Actor):
         return flags[0], flags[1], flags[2], flags[3], flags[4], flags[5]
 
     def _tilt(
-        self, counts: tuple[int, int, int]
+        self, counts: tuple[int, int, int], seq: int | None
     ) -> tuple[float, float, tuple[float, float, float]] | None:
+        if not self._acc_fitted:
+            return None  # counts from an unfitted sensor's open inputs mean nothing
         (zx, gx), (zy, gy), (zz, gz) = self._acc
         accel = ((counts[0] - zx) / gx, (counts[1] - zy) / gy, (counts[2] - zz) / gz)
-        try:
-            roll, pitch = tilt_from_acceleration(*accel)
-        except UsageError:
-            return None  # free fall (or an unpowered sensor): no gravity, no tilt
-        return roll, pitch, accel
+        verdict = self.gravity.check(accel)
+        if verdict.change == "implausible":
+            self.emit(
+                AccelImplausible(
+                    t=self.now(),
+                    source=self.name,
+                    link=self.port,
+                    sensor="board",
+                    seq=seq,
+                    accel_g=accel,
+                    magnitude_g=verdict.magnitude_g,
+                    tolerance_g=self.gravity.tolerance_g,
+                )
+            )
+        elif verdict.change == "plausible":
+            self.emit(
+                AccelPlausible(
+                    t=self.now(),
+                    source=self.name,
+                    link=self.port,
+                    sensor="board",
+                    seq=seq,
+                    magnitude_g=verdict.magnitude_g,
+                    withheld=verdict.withheld,
+                )
+            )
+        if verdict.tilt is None:
+            return None
+        return verdict.tilt[0], verdict.tilt[1], accel
 
     # ----------------------------------------------------------------- watchdogs
 
     async def _watch_staleness(self) -> None:
+        # Armed by a valid frame (``watching``), disarmed when a connection
+        # opens and when it has said stale; a frame re-arms it.
         while True:
-            deadline = self.last_valid + self.stale_after_s
-            if self.now() < deadline:
-                await self.clock.sleep_until(deadline)
-                continue
-            if not self.stale:
+            if self.watching and not self.stale:
+                deadline = self.last_valid + self.stale_after_s
+                if self.now() < deadline:
+                    await self.clock.sleep_until(deadline)
+                    continue
                 self.stale = True
                 self.emit(
                     SensorLinkStale(

@@ -109,7 +109,7 @@ _COMMON: Final = (
     _r("position_p_gain", 84, 2, initial=850),
     _r("feedforward_2nd_gain", 88, 2, initial=0),
     _r("feedforward_1st_gain", 90, 2, initial=0),
-    _r("bus_watchdog", 98, 1, initial=0),
+    _r("bus_watchdog", 98, 1, signed=True, initial=0),
     _r("goal_pwm", 100, 2, signed=True),
     _r("goal_velocity", 104, 4, signed=True),
     _r("profile_acceleration", 108, 4, initial=0),

@@ -1,6 +1,7 @@
 """Find the servos on a port: ``whexar bus scan``.
 
-Uses dynamixel-sdk directly (``PortHandler``, ``PacketHandler(2.0)``), so it
+Uses dynamixel-sdk directly (``PacketHandler(2.0)`` on the waiting
+``PortHandler`` of :mod:`whexar.bus.sdk`), so it
 works on a U2D2, on a pty served by ``whexar emulate``, on anything that
 speaks Protocol 2.0.
 
@@ -90,7 +91,9 @@ def scan(
 
     import dynamixel_sdk as dxl
 
-    port = dxl.PortHandler(port_name)
+    from whexar.bus.sdk import WaitingPortHandler
+
+    port = WaitingPortHandler(port_name)
     try:
         port.setBaudRate(baudrate)
     except OSError as exc:  # pyserial's SerialException is an OSError

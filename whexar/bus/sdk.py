@@ -23,6 +23,12 @@ before a failure keep their data: the SDK stops at the first failing servo
 and reports nothing. Fast Sync Read uses ``syncReadTx(fast)`` and
 ``fastSyncReadRx``; its single status packet is split per servo here.
 
+A real port is a :class:`WaitingPortHandler`: the SDK's ``PortHandler``
+opens pyserial with ``timeout=0`` and its packet loop polls ``readPort``
+without sleeping, which burns a core and holds the GIL against every other
+thread; this one waits for bytes in ``select()`` until the SDK's own packet
+deadline, so the owning thread sleeps while the servos talk.
+
 Port errors (a vanished USB device raises ``OSError`` in pyserial) become
 :class:`~whexar.errors.DeviceGoneError`.
 """
@@ -32,6 +38,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import queue
+import select
 import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -46,7 +53,7 @@ from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
 from whexar.bus.control_table import Register
 from whexar.bus.protocol import ALERT, crc16
 from whexar.errors import DeviceGoneError
-from whexar.runtime.clock import Clock
+from whexar.runtime.clock import Clock, monotonic
 
 T = TypeVar("T")
 
@@ -70,9 +77,14 @@ def comm_name(result: int) -> str:
 
 
 class Port(Protocol):
-    """What dynamixel-sdk needs of a port: a ``PortHandler`` or an emulated one."""
+    """What dynamixel-sdk needs of a port (a ``PortHandler`` or an emulated one), and a cap.
+
+    ``timeout_cap_ms``, when set, bounds every packet timeout the SDK arms
+    (:meth:`DxlBus.ping` sets it for a probe that must not stall a cycle).
+    """
 
     is_using: bool
+    timeout_cap_ms: float | None
 
     def clearPort(self) -> None: ...  # noqa: N802 — the SDK's names
     def writePort(self, packet: Any) -> int: ...  # noqa: N802
@@ -146,10 +158,21 @@ class DxlBus:
             name = getattr(self.port, "port_name", "the servo port")
             raise DeviceGoneError(f"servo port {name}: {exc}") from exc
 
-    def ping(self, servo: int) -> Reply:
-        """Ping ``servo``; ``value`` is its model number."""
-        with self._gone():
-            model, result, error = self.ph.ping(self.port, servo)
+    def ping(self, servo: int, *, timeout_ms: float | None = None) -> Reply:
+        """Ping ``servo``; ``value`` is its model number.
+
+        ``timeout_ms`` bounds the wait for its status (default: the SDK's,
+        about 34 ms with its 16 ms latency allowance): a probe of a servo that
+        may be dead costs at most that.
+        """
+        port = self.port
+        cap = port.timeout_cap_ms
+        port.timeout_cap_ms = timeout_ms
+        try:
+            with self._gone():
+                model, result, error = self.ph.ping(port, servo)
+        finally:
+            port.timeout_cap_ms = cap
         return Reply(result, error, model)
 
     def read(self, servo: int, reg: Register) -> Reply:
@@ -335,12 +358,51 @@ def _settle(future: asyncio.Future[Any], result: Any, exc: BaseException | None)
         future.set_result(result)
 
 
+class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
+    """dynamixel-sdk's ``PortHandler`` that waits for bytes instead of polling for them.
+
+    The SDK reads with ``timeout=0`` in a loop until its packet deadline
+    (``setPacketTimeout``: bytes × 10/baud + 2 × 16 ms + 2 ms). Here a read
+    that finds nothing waits in ``select()`` — no CPU, the GIL released —
+    until bytes arrive or that deadline passes; a read that finds bytes
+    returns them at once, so nothing is slower than the SDK's loop. The
+    deadline is kept on :func:`whexar.runtime.clock.monotonic` (the SDK's own
+    uses the wall clock, which may jump).
+    """
+
+    timeout_cap_ms: float | None = None
+    """When set, no packet timeout is longer (see :meth:`DxlBus.ping`)."""
+    packet_start_time: float
+    packet_timeout: float
+    ser: Any
+
+    def getCurrentTime(self) -> float:  # noqa: N802 — the SDK's name; milliseconds
+        return monotonic() * 1000.0
+
+    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802
+        super().setPacketTimeout(packet_length)
+        armed: float = self.packet_timeout
+        if self.timeout_cap_ms is not None:
+            self.packet_timeout = min(armed, self.timeout_cap_ms)
+
+    def readPort(self, length: int) -> bytes:  # noqa: N802
+        data: bytes = self.ser.read(length)  # timeout=0: whatever has arrived
+        if data:
+            return data
+        deadline_ms: float = self.packet_start_time + self.packet_timeout
+        left_ms = deadline_ms - self.getCurrentTime()
+        if left_ms > 0:
+            select.select([self.ser.fileno()], [], [], left_ms / 1000.0)
+            data = self.ser.read(length)
+        return data
+
+
 def open_port(name: str, baudrate: int) -> Any:
-    """Open a real serial port (U2D2, pty) with dynamixel-sdk's ``PortHandler``.
+    """Open a real serial port (U2D2, pty) as a :class:`WaitingPortHandler`.
 
     Raises :class:`DeviceGoneError` naming the port when it cannot be opened.
     """
-    port = dxl.PortHandler(name)
+    port = WaitingPortHandler(name)
     try:
         if not port.openPort():
             raise DeviceGoneError(f"servo port {name}: could not open it")

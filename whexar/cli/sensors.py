@@ -2,10 +2,19 @@
 
 The monitor runs the real :class:`~whexar.actors.sensors.SensorReader` on
 real time and prints each decoded frame as it arrives, plus one line for
-every link event (up, down, stale, fresh), sequence gap and rejected frame.
-With ``--json`` every line is one JSON object whose ``kind`` is ``frame``
-or ``event`` (then ``event`` is its class name); ``loads`` are the FSR
-counts; a distance of ``null`` means nothing within range.
+every link event (up, down, stale, fresh), sequence gap, rejected frame and
+change of the accelerometer's plausibility.
+
+Each IR rangefinder reads one of three ways: a distance; nothing within
+range (``--`` in a line, ``"clear"``); or no reading, its input at 0 V — an
+unplugged or unpowered sensor, whose view is unknown (``n/c`` in a line,
+``"no_reading"``). With ``--json`` every line is one JSON object whose
+``kind`` is ``frame`` or ``event`` (then ``event`` is its class name);
+``ir_distance_m`` holds a distance or ``null`` per sensor and
+``ir_status`` says which of the three it is (``"range"``, ``"clear"``,
+``"no_reading"``); ``loads`` are the FSR counts; ``roll_deg`` and
+``pitch_deg`` are ``null`` when there is no tilt (no accelerometer fitted, or
+its reading is not gravity).
 """
 
 from __future__ import annotations
@@ -18,6 +27,8 @@ from pathlib import Path
 from typing import Any
 
 from whexar.actors.messages import (
+    AccelImplausible,
+    AccelPlausible,
     SensorFrame,
     SensorFrameGap,
     SensorFrameRejected,
@@ -38,12 +49,27 @@ SENSOR_EVENTS = (
     SensorLinkFresh,
     SensorFrameGap,
     SensorFrameRejected,
+    AccelImplausible,
+    AccelPlausible,
 )
 """The events the monitor prints."""
 
 
 def _deg(rad: float | None) -> float | None:
     return None if rad is None else round(math.degrees(rad), 2)
+
+
+def ir_status(distance: float | None) -> str:
+    """``"range"`` (a distance), ``"clear"`` (nothing within range) or ``"no_reading"``."""
+    if distance is None:
+        return "no_reading"
+    return "clear" if math.isinf(distance) else "range"
+
+
+def _ir_text(distance: float | None) -> str:
+    if distance is None:
+        return " n/c "
+    return "  -- " if math.isinf(distance) else f"{distance:.3f}"
 
 
 def frame_record(frame: SensorFrame) -> dict[str, Any]:
@@ -64,7 +90,8 @@ def frame_record(frame: SensorFrame) -> dict[str, Any]:
         "raw": raw,
         "ir_distance_m": None
         if distances is None
-        else [None if math.isinf(d) else round(d, 4) for d in distances],
+        else [None if d is None or math.isinf(d) else round(d, 4) for d in distances],
+        "ir_status": None if distances is None else [ir_status(d) for d in distances],
         "loads": None if frame.fsr_counts is None else list(frame.fsr_counts),
         "contacts": None if frame.contacts is None else list(frame.contacts),
         "roll_deg": _deg(frame.roll_rad),
@@ -78,13 +105,15 @@ def frame_line(frame: SensorFrame) -> str:
     seq = "-" if frame.seq is None else str(frame.seq)
     parts = [f"{frame.t:10.3f}  seq {seq:>5}"]
     if frame.ir_counts is not None and frame.ir_distances_m is not None:
-        shown = ", ".join("  --  " if math.isinf(d) else f"{d:.3f}" for d in frame.ir_distances_m)
+        shown = ", ".join(_ir_text(d) for d in frame.ir_distances_m)
         parts.append(f"ir {frame.ir_counts[0]:4d} {frame.ir_counts[1]:4d} ({shown} m)")
     if frame.fsr_counts is not None and frame.contacts is not None:
         marks = "".join("#" if c else "." for c in frame.contacts)
         parts.append(f"fsr {' '.join(f'{c:4d}' for c in frame.fsr_counts)} [{marks}]")
     if frame.roll_rad is not None and frame.pitch_rad is not None:
         parts.append(f"roll {_deg(frame.roll_rad):+6.1f}° pitch {_deg(frame.pitch_rad):+6.1f}°")
+    elif frame.acc_counts is not None:
+        parts.append("acc " + " ".join(f"{c:4d}" for c in frame.acc_counts) + " (no tilt)")
     return "  ".join(parts)
 
 
@@ -118,6 +147,16 @@ def event_line(event: Message) -> str:
             return f"{t}GAP: {event.missed} frame(s) lost before seq {event.seq}"
         case SensorFrameRejected():
             return f"{t}REJECTED ({event.size} bytes): {event.reason}: {event.excerpt}"
+        case AccelImplausible():
+            return (
+                f"{t}{event.sensor} accelerometer NOT GRAVITY: |a| = {event.magnitude_g:.2f} g "
+                f"(1 ± {event.tolerance_g:g} g expected): no tilt"
+            )
+        case AccelPlausible():
+            return (
+                f"{t}{event.sensor} accelerometer reads gravity again "
+                f"(|a| = {event.magnitude_g:.2f} g) after {event.withheld} reading(s)"
+            )
     return f"{t}{type(event).__name__}"
 
 
@@ -169,7 +208,9 @@ def add_commands(commands: Commands) -> None:
         description="Read the sensor board (firmware/PROTOCOL.md) through the real sensor "
         "reader and print each decoded frame: raw counts, IR distances (eq. 5.5), FSR "
         "counts and contact flags, roll and pitch, sequence number; and a line for every "
-        "link event, sequence gap and rejected frame. Runs until SIGINT/SIGTERM or "
+        "link event, sequence gap, rejected frame and implausible accelerometer. An IR "
+        "sensor reads a distance, '--' (nothing within range) or 'n/c' (no reading: its "
+        "input is at 0 V, unplugged). Runs until SIGINT/SIGTERM or "
         "--duration. Exit status 0 after a clean stop.",
     )
     sensors.add_argument(

@@ -3,6 +3,8 @@
 * :mod:`~whexar.sensors.frame` — the board's frames (``firmware/PROTOCOL.md``), a sans-IO codec;
 * :mod:`~whexar.sensors.serial_link` — the board's serial port over pyserial-asyncio;
 * :mod:`~whexar.sensors.board_emulator` — the board's firmware in Python, on virtual time;
+* :mod:`~whexar.sensors.usart` — the serial rates the board's ATmega2560 can run at;
+* :mod:`~whexar.sensors.gravity` — whether an accelerometer reading is gravity (tilt or none);
 * :mod:`~whexar.sensors.lsm9ds1` — the LSM9DS1 IMU driver over an SMBus;
 * :mod:`~whexar.sensors.imu_emulator` — a fake I²C bus and a register-level LSM9DS1.
 

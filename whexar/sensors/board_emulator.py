@@ -13,10 +13,17 @@ tests and in the simulator; the firmware itself runs under simavr in the
 end-to-end tests, which check it against the same protocol.
 
 Opening a link resets the board, as opening an Arduino Mega's USB port
-pulses DTR: sequence numbers start from 0 again and the filters refill.
+pulses DTR: sequence numbers start from 0 again, the filters refill and the
+frame rate is the build's default again (a ``rate=N#`` is forgotten). The
+sketch starts ``boot_s`` after the reset — a real Mega's bootloader waits
+about a second first; the default, 0, keeps frames on the frame clock — and
+sends its first frame one frame period later. Like the firmware's default
+build (``WITH_ACCEL=0``), the board has no analog accelerometer unless
+``accelerometer=True``.
 
 Faults are methods (``unplug``, ``silence``, ``corrupt``, ``drop``,
-``inject``) that a test or a scenario calls at the time it wants them.
+``inject``, ``reset``) that a test or a scenario calls at the time it wants
+them.
 """
 
 from __future__ import annotations
@@ -107,7 +114,10 @@ class SensorBoardEmulator:
 
     ``counts`` holds the present ADC reading of each input by frame key;
     :meth:`set` changes them, or ``script`` gives them as a function of the
-    board's time. ``accelerometer=False`` leaves ``acc*`` out of frames.
+    board's time. ``accelerometer=True`` adds ``accx/accy/accz`` to the
+    frames (a ``WITH_ACCEL=1`` build); ``boot_s`` is the silence after every
+    reset before the sketch starts. ``frame_rate_hz`` is the build's default
+    rate (``FRAME_RATE_HZ``); :attr:`rate_hz` is the rate in force now.
     """
 
     def __init__(
@@ -115,7 +125,8 @@ class SensorBoardEmulator:
         *,
         frame_rate_hz: float = 20.0,
         baudrate: int = 1_000_000,
-        accelerometer: bool = True,
+        accelerometer: bool = False,
+        boot_s: float = 0.0,
         counts: Mapping[str, int] | None = None,
         script: Script | None = None,
     ) -> None:
@@ -123,9 +134,12 @@ class SensorBoardEmulator:
             raise UsageError(
                 f"frame_rate_hz = {frame_rate_hz!r}: must lie in {RATE_MIN_HZ}…{RATE_MAX_HZ}"
             )
+        if not (math.isfinite(boot_s) and boot_s >= 0):
+            raise UsageError(f"boot_s = {boot_s!r}: must be a finite time >= 0")
         self.frame_rate_hz = frame_rate_hz
         self.baudrate = baudrate
         self.accelerometer = accelerometer
+        self.boot_s = boot_s
         self.script = script
         # Level and unloaded, nothing in range: acc z reads +1 g on the
         # default ADXL335 calibration; 80 counts is beyond 2 m by eq. 5.5.
@@ -138,6 +152,11 @@ class SensorBoardEmulator:
         self.resets = 0
         self.commands: list[bytes] = []
         self._link: EmulatedBoardLink | None = None
+
+    @property
+    def rate_hz(self) -> float:
+        """The frame rate in force: the build's default, or what ``rate=N#`` set since reset."""
+        return self._link.rate_hz if self._link is not None else self.frame_rate_hz
 
     def set(self, **counts: int) -> None:
         """Set inputs by frame key (``ir1=300, fsr2=512``); values are ADC counts."""
@@ -178,6 +197,15 @@ class SensorBoardEmulator:
         """Lose the next ``frames`` frames on the wire (their sequence numbers are skipped)."""
         self.faults.drop += frames
 
+    def reset(self) -> None:
+        """The board restarts with its link still open (a brown-out, the watchdog, the reset
+        button): the frame on its way is lost, and after ``boot_s`` the sketch starts over —
+        ``seq`` from 0, filters refilled, the build's default frame rate."""
+        self.resets += 1
+        if self._link is not None:
+            self._link.restart_pending = True
+            self._link.wake()
+
     def inject(self, data: bytes) -> None:
         """Put ``data`` on the wire now, between frames (noise, a stray reset message)."""
         if self._link is not None:
@@ -211,15 +239,21 @@ class EmulatedBoardLink:
         self.name = "emulator"
         self.closed = False
         self.pending: list[bytes] = []
+        self.restart_pending = False
         self._clock = clock
-        self._t0 = clock.now()
-        self._period = 1.0 / board.frame_rate_hz
+        self._command = bytearray()
+        self._woken = anyio.Event()
+        self._start()
+
+    def _start(self) -> None:
+        """The sketch's ``setup()``, ``boot_s`` from now: board time 0 is when it runs."""
+        self._t0 = self._clock.now() + self.board.boot_s
+        self.rate_hz: float = self.board.frame_rate_hz
+        self._period = 1.0 / self.rate_hz
         self._next_frame = self._period
         self._next_sample = 0.0
         self._seq = 0
         self._filters: dict[str, TrimmedMean] | None = None
-        self._command = bytearray()
-        self._woken = anyio.Event()
 
     def wake(self) -> None:
         self._woken.set()
@@ -257,6 +291,9 @@ class EmulatedBoardLink:
         while True:
             if self._gone():
                 raise DeviceGoneError("emulated sensor board: unplugged")
+            if self.restart_pending:
+                self.restart_pending = False
+                self._start()
             if self.pending:
                 data = b"".join(self.pending)
                 self.pending.clear()
@@ -268,8 +305,8 @@ class EmulatedBoardLink:
             with anyio.move_on_after(max(0.0, arrival - self._clock.now())):
                 await self._woken.wait()
             if self._woken.is_set():
-                # Woken early (a fault, injected bytes): this frame is not
-                # sent yet; undo its sequence number and look again.
+                # Woken early (a fault, injected bytes, a reset): this frame is
+                # not sent yet; undo its sequence number and look again.
                 self._woken = anyio.Event()
                 self._seq = (self._seq - 1) % 65536
                 continue
@@ -303,7 +340,7 @@ class EmulatedBoardLink:
                 rate = int(digits)
                 if RATE_MIN_HZ <= rate <= RATE_MAX_HZ:
                     self._period = 1.0 / rate
-                    self.board.frame_rate_hz = rate
+                    self.rate_hz = rate
 
     async def aclose(self) -> None:
         self.closed = True

@@ -14,11 +14,18 @@ state machine: if those bytes contain ``seq=``, the frame starts at the last
 or the tail of one cut off when the port opened). So a frame that arrives
 intact after any corruption is always recovered, and a corrupted frame is
 never published: in ``checked`` mode every frame must carry a sequence
-number and a correct checksum, and every frame, checked or not, must match
-the grammar, have complete groups and in-range values.
+number and a correct checksum; in ``thesis`` mode a frame may carry neither,
+but one that carries ``seq`` must carry its checksum too (``seq`` only ever
+comes with ``crc``, so a ``seq`` without one is a checked frame cut short by
+a lost byte or a corrupted ``#``, whose missing groups would otherwise pass
+unnoticed); and every frame, checked or not, must match the grammar, have
+complete groups and in-range values.
 
 Bytes without a ``#`` are kept up to :data:`MAX_FRAME_BYTES`; older ones are
-dropped as garbage, so memory stays bounded whatever arrives.
+dropped as garbage, so memory stays bounded whatever arrives. A port opened
+while the board was sending starts in the middle of a frame: that tail, up
+to the first ``#``, is dropped quietly when the reader says so
+(:meth:`FrameDecoder.clear` with ``tail_expected``).
 """
 
 from __future__ import annotations
@@ -116,8 +123,8 @@ class FrameDecoder:
     """Turns the board's byte stream into frames; see the module docstring.
 
     ``mode`` is ``sensor_board.protocol``: ``checked`` requires ``seq`` and
-    ``crc``; ``thesis`` accepts the plain frame of 5.4 too (both are verified
-    when present).
+    ``crc``; ``thesis`` accepts the plain frame of 5.4 too (a ``crc`` that is
+    present is verified, and a ``seq`` needs one).
     """
 
     mode: Mode = "checked"
@@ -125,16 +132,25 @@ class FrameDecoder:
     _buf: bytearray = field(default_factory=bytearray)
     _last_seq: int | None = None
     _overflowed: int = 0
+    _tail_expected: bool = False
 
     def reset_sequence(self) -> None:
         """Forget the last sequence number (a new connection: the first frame has no gap)."""
         self._last_seq = None
 
-    def clear(self) -> None:
-        """Drop any partial frame (the port was closed); counters are kept."""
+    def clear(self, *, tail_expected: bool = False) -> None:
+        """Drop any partial frame (the port was closed); counters are kept.
+
+        ``tail_expected``: a port was just opened on a board that may be
+        sending already (a USB adapter without the Mega's reset, a pty), so
+        the bytes up to its first ``#`` may be the tail of a frame on its way.
+        If they are not a frame they are dropped quietly (counted as garbage
+        bytes), not reported as a rejected frame; everything after them is.
+        """
         self._buf.clear()
         self._overflowed = 0
         self._last_seq = None
+        self._tail_expected = tail_expected
 
     def feed(self, data: bytes) -> list[Frame | Rejected]:
         """Decode every frame that ``data`` completes, in order."""
@@ -163,6 +179,20 @@ class FrameDecoder:
     # ------------------------------------------------------------------ parsing
 
     def _candidate(self, data: bytes, out: list[Frame | Rejected]) -> None:
+        if self._tail_expected and data.strip(_IGNORED):
+            # The first bytes since the port opened: if they hold no frame, they
+            # are the tail of one cut off by the opening; drop them quietly.
+            self._tail_expected = False
+            found: list[Frame | Rejected] = []
+            self._decode(data, found)
+            if any(isinstance(item, Frame) for item in found):
+                out.extend(found)
+            else:
+                self.stats.rejected -= len(found)  # garbage bytes, not rejected frames
+            return
+        self._decode(data, out)
+
+    def _decode(self, data: bytes, out: list[Frame | Rejected]) -> None:
         begin = data.rfind(_SEQ)
         if begin < 0 and self.mode == "thesis":
             begin = data.rfind(_IR1)  # a plain thesis frame has no seq; it begins with ir1 (5.4)
@@ -225,6 +255,10 @@ class FrameDecoder:
         seq = values[0]
         if seq is None and self.mode == "checked":
             raise FrameError("no sequence number (sensor_board.protocol is 'checked')")
+        if seq is not None and not checked:
+            # Only a checked frame carries seq (PROTOCOL.md), so this is one whose
+            # tail was lost: a byte turned '#' mid-frame, or the line cut out.
+            raise FrameError("seq but no checksum (a checked frame cut short?)")
         ir = cast("tuple[int, int] | None", _group(values, 1, 3, IR_KEYS))
         acc = cast("tuple[int, int, int] | None", _group(values, 3, 6, ACC_KEYS))
         fsr = cast("tuple[int, int, int, int, int, int] | None", _group(values, 6, 12, FSR_KEYS))

@@ -71,6 +71,9 @@ class FaultState:
     """Probability that a status packet (or a servo's part of a fast one) is not sent."""
     unplugged: bool = False
     """The port is gone: :class:`EmulatedPort` raises ``OSError(EIO)`` on write and read."""
+    tx_fail: int = 0
+    """The next ``tx_fail`` host writes are lost: the adapter takes no byte of them (the
+    SDK reports a failed transmit) and no servo hears them."""
     rng: random.Random = field(default_factory=lambda: random.Random(0))
 
 
@@ -83,6 +86,11 @@ class Transaction:
     cost_s: float
     packets: tuple[Packet, ...]
     """The instruction packets decoded from ``request``."""
+    arrivals: tuple[tuple[int, float], ...] = ()
+    """When the reply's bytes arrive: (bytes so far, seconds after the request started), one
+    entry per status packet, the last at ``(len(reply), cost_s)``. The servos answer one
+    after another, so a host parses the first packets while the last are still on the
+    wire (:mod:`whexar.bus.emulator.pty` writes them so)."""
 
 
 @dataclass
@@ -198,9 +206,18 @@ class ServoChain:
         for servo in self._all:
             servo.advance(t)
 
+    def power_up(self, t: float) -> None:
+        """Every servo powers up at bus time ``t``: initial RAM, and silent while it boots."""
+        for servo in self._all:
+            servo.power_cycle(t)
+
     def _hears(self, servo: VirtualServo, t: float) -> bool:
+        """Whether ``servo`` hears a packet at ``t``; if so, the packet feeds its watchdog."""
         silent = self.faults.silent_until
-        return not silent or t >= silent.get(servo.id, -math.inf)
+        if (silent and t < silent.get(servo.id, -math.inf)) or servo.booting(t):
+            return False
+        servo.heard(t)
+        return True
 
     def transact(self, request: bytes, t: float) -> Transaction:
         """Handle ``request`` sent at bus time ``t``; the reply and its cost (see module doc)."""
@@ -220,37 +237,62 @@ class ServoChain:
             hook(self, t, packets)
         reply = bytearray()
         cost = self.timing.write_s(len(request))
+        arrivals: list[tuple[int, float]] = []
         if not self.faults.unplugged:
             for packet in packets:
                 replies, fast = self._execute(packet, t)
                 if packet.instruction in _WRITES:
                     self._rekey()
                 if replies:
-                    cost += self._deliver(replies, fast, reply)
+                    cost += self._deliver(replies, fast, reply, arrivals, cost)
         if reply and self.faults.corrupt_rate > 0.0:
             self._corrupt(reply)
         stats.bytes_out += len(reply)
-        return Transaction(request, bytes(reply), cost, packets)
+        return Transaction(request, bytes(reply), cost, packets, tuple(arrivals))
 
-    def _deliver(self, replies: list[_Reply], fast: bool, out: bytearray) -> float:
+    def _deliver(
+        self,
+        replies: list[_Reply],
+        fast: bool,
+        out: bytearray,
+        arrivals: list[tuple[int, float]],
+        before: float,
+    ) -> float:
+        """Append the status packets that are not dropped to ``out``; their bus time.
+
+        ``arrivals`` gets when each packet is complete, ``before`` seconds into the
+        exchange plus the turnaround, then each packet's Return Delay Time, wire
+        time and host cost in turn.
+        """
         drop = self.faults.drop_rate
         rng = self.faults.rng
+        timing = self.timing
         packets = 0
         nbytes = 0
         delay = 0.0
+        at = before + timing.turnaround_s
+        marks: list[tuple[int, float]] = []
         for servo, data in replies:
             if drop > 0.0 and rng.random() < drop:
                 self.stats.dropped += 1
                 continue
             if not fast or not packets:
                 delay += servo.return_delay_s
+                at += servo.return_delay_s
                 packets += 1
             nbytes += len(data)
+            at += timing.wire_s(len(data)) + timing.per_status_byte_s * len(data)
             out += data
+            marks.append((len(out), at))
         if not packets:
             return 0.0
         self.stats.replies += packets
-        return self.timing.read_s(0, packets, nbytes, delay / packets)
+        cost = timing.read_s(0, packets, nbytes, delay / packets)
+        # A fast status packet is one packet: it arrives whole. The last mark is the cost.
+        marks = marks[:-1] if not fast else []
+        arrivals.extend(marks)
+        arrivals.append((len(out), before + cost))
+        return cost
 
     def _corrupt(self, reply: bytearray) -> None:
         rate = self.faults.corrupt_rate

@@ -50,6 +50,8 @@ class EmulatedPort:
         self.timer = timer
         self.is_open = True
         self.is_using = False
+        self.timeout_cap_ms: float | None = None
+        """When set, no packet timeout is longer (:meth:`~whexar.bus.sdk.DxlBus.ping`)."""
         self.port_name = "emulated"
         self.baudrate = chain.timing.baudrate
         self.elapsed_s = 0.0
@@ -126,6 +128,9 @@ class EmulatedPort:
         self._check_plugged()
         data = bytes(packet)
         self._tx_start = self._deadline = self.elapsed_s
+        if self.chain.faults.tx_fail > 0:
+            self.chain.faults.tx_fail -= 1
+            return 0
         if self.baudrate != self.chain.timing.baudrate:
             # Servos at another rate see framing errors only: nothing answers.
             self.elapsed_s += len(data) * self.chain.timing.bits_per_byte / self.baudrate
@@ -143,6 +148,8 @@ class EmulatedPort:
         """Arm the SDK's timeout for ``packet_length`` bytes, counted from the last write."""
         # dynamixel_sdk PortHandler: tx_time_per_byte·n + LATENCY_TIMER·2 + 2 ms.
         ms = self.tx_time_per_byte * packet_length + 2.0 * self.latency_timer_ms + 2.0
+        if self.timeout_cap_ms is not None:
+            ms = min(ms, self.timeout_cap_ms)
         self._deadline = self._tx_start + ms / 1000.0
 
     def setPacketTimeoutMillis(self, msec: float) -> None:  # noqa: N802

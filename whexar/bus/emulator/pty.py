@@ -21,11 +21,14 @@ exception from the chain (or from a fault hook) is counted and kept in
 
 Real time: the bus is one shared wire. The emulator keeps ``bus_free_at``;
 a request that arrives at ``a`` is handled at ``start = max(a, bus_free_at)``,
-its status bytes are written at ``start + cost`` (the chain's modelled cost:
-wire time both ways, return delays, turnaround), and ``bus_free_at`` becomes
-``start + cost``. A Sync Write has no reply but still occupies the bus for its
-wire time, so a read right behind it waits. With ``realtime=False`` every
-reply is written at once.
+its last status byte is written at ``start + cost`` (the chain's modelled
+cost: wire time both ways, return delays, turnaround), and ``bus_free_at``
+becomes ``start + cost``. Before that, the status packets are written as the
+servos would have sent them, in 1 ms chunks as a USB adapter delivers them
+(:data:`USB_FLUSH_S`), so that a host can decode the first servos' answers
+while the last ones are still on the wire. A Sync Write has no reply but
+still occupies the bus for its wire time, so a read right behind it waits.
+With ``realtime=False`` every reply is written at once.
 
 Only :mod:`whexar.runtime.clock` reads the wall clock: ``monotonic()`` for
 arrival times and ``wait_until()`` to hold a reply until its time.
@@ -64,6 +67,10 @@ The device's own limit is 1.5 ms between bytes (e-manual); a pty delivers a
 packet written in one ``write()`` at once, but this thread may be descheduled
 for a few milliseconds, so the emulator is lenient.
 """
+USB_FLUSH_S: Final = 0.001
+"""A USB-serial adapter (the U2D2's FTDI chip) hands received bytes to the host when its
+latency timer expires, 1 ms once set right (config/99-whexar-dynamixel.rules): replies
+arrive in 1 ms chunks as the servos send them, not all at the end."""
 _WRITE_STALL_S: Final = 0.5
 """How long a reply may wait for room in the pty before it is dropped (no reader)."""
 
@@ -242,13 +249,44 @@ class PtyEmulator:
         self.stats.requests += 1
         self.last_transaction = transaction
         reply = transaction.reply
-        if self.realtime:
-            done = start + transaction.cost_s
-            self._bus_free_at = done
-            if reply:
-                wait_until(done)
-        if reply:
+        if not reply:
+            if self.realtime:
+                self._bus_free_at = start + transaction.cost_s
+            return
+        if not self.realtime:
             self._write(reply)
+            return
+        done = start + transaction.cost_s
+        self._bus_free_at = done
+        self._stream(reply, start, done, transaction.arrivals)
+
+    def _stream(
+        self, reply: bytes, start: float, done: float, arrivals: tuple[tuple[int, float], ...]
+    ) -> None:
+        """Write ``reply`` as a USB adapter hands it over: every :data:`USB_FLUSH_S`, the
+        status bytes complete by then; the last byte exactly at ``done``."""
+        sent = 0
+        k = 0
+        flush = start + USB_FLUSH_S
+        while sent < len(reply):
+            if flush >= done:
+                upto, flush = len(reply), done
+            else:
+                upto = sent
+                while k < len(arrivals) and start + arrivals[k][1] <= flush:
+                    upto = arrivals[k][0]
+                    k += 1
+            if upto > sent:
+                if upto == len(reply):
+                    wait_until(flush)
+                else:
+                    # Between chunks a coarse sleep will do; only the last byte is exact.
+                    left = flush - monotonic()
+                    if left > 0:
+                        select.select([self._wake_r], [], [], left)
+                self._write(reply[sent:upto])
+                sent = upto
+            flush += USB_FLUSH_S
 
     def _write(self, data: bytes) -> None:
         view = memoryview(data)

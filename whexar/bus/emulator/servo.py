@@ -50,6 +50,18 @@ from whexar.bus.emulator.dynamics import (
 from whexar.bus.protocol import MAX_ID, StatusError
 from whexar.errors import UsageError
 
+BOOT_TIME_S: Final = 0.4
+"""How long a servo answers nothing after a Reboot or a power-up. The e-manual gives no
+figure; "about 0.4 seconds" was measured on Protocol 2.0 servos (ROBOTIS-GIT/emanual
+issue #1698), so every recovery sees a realistic boot."""
+WATCHDOG_UNIT_S: Final = 0.02
+"""Bus Watchdog (98): 1–127 in units of 20 ms; 0 off and clears its error; −1 the error
+(e-manual, MX (2.0) control table, "Bus Watchdog")."""
+_WATCHDOG_ERROR: Final = 0xFF
+"""Bus Watchdog read back as −1: the watchdog stopped the servo."""
+_GOALS: Final = frozenset({"goal_pwm", "goal_current", "goal_velocity", "goal_position"})
+"""Goal values, read-only while the Bus Watchdog error is set (e-manual)."""
+
 _VEL_TICKS: Final = VELOCITY_UNIT_RPM / 60.0 * TICKS_PER_REV
 """Ticks/s per velocity unit (0.229 rev/min, e-manual)."""
 _ACC_TICKS: Final = ACCELERATION_UNIT_RPM2 / 3600.0 * TICKS_PER_REV
@@ -93,6 +105,7 @@ _STATIC_RANGES: Final = {
     "status_return_level": (0, 2),
     "profile_acceleration": (0, 32767),
     "profile_velocity": (0, 32767),
+    "bus_watchdog": (0, 127),
 }
 _OPERATING_MODES: Final = frozenset({0, 1, 3, 4, 5, 16})
 """Current, velocity, position, extended position, current-based position, PWM (e-manual)."""
@@ -188,7 +201,8 @@ class VirtualServo:
     Current from :attr:`load_model` (default:
     :func:`~whexar.bus.emulator.dynamics.default_load`). Not modelled: Homing
     Offset, Drive Mode's reverse bit, Secondary ID, Present PWM (reads 0), the
-    baud-rate register, boot time after a reboot.
+    baud-rate register. A Reboot or a power-up makes it silent for
+    :attr:`boot_time_s`; the Bus Watchdog (98) stops it as the e-manual says.
     """
 
     FIRMWARE_VERSION: ClassVar[int] = 42
@@ -226,6 +240,10 @@ class VirtualServo:
         """How the horn moves between transactions (:mod:`whexar.bus.emulator.dynamics`);
         the physics world puts its joint here."""
         self._drive: Drive | None = None
+        self.boot_time_s = BOOT_TIME_S
+        """Silence after a Reboot or a power-up (:data:`BOOT_TIME_S` unless set)."""
+        self._ready_at = 0.0
+        self._heard_at = 0.0
         self._goal = position
         self._in_profile = False
         self._dirty = True
@@ -340,17 +358,36 @@ class VirtualServo:
         self._srl = t[68]
         (self._goal_velocity,) = struct.unpack_from("<i", t, 104)
         self._prof_acc, self._prof_vel = struct.unpack_from("<II", t, 108)
+        self._watchdog = t[98] if t[98] < 128 else 0  # −1 (error) monitors nothing
         self._drive = None
 
     # ----------------------------------------------------------------- dynamics
 
     def advance(self, t: float) -> None:
-        """Integrate the dynamics up to bus time ``t`` (earlier times are ignored)."""
+        """Integrate the dynamics up to bus time ``t`` (earlier times are ignored).
+
+        Input Voltage Error follows the supply: it sets while the voltage is
+        outside the limits and clears when it returns, unless Shutdown (63)
+        latched it (default Shutdown 52 leaves it out, so torque stays on).
+        The Bus Watchdog stops the servo at the moment it expires.
+        """
         volts = self.input_voltage_v
-        if (volts < self._min_v - 1e-9 or volts > self._max_v + 1e-9) and not self.table[70] & 1:
+        volts_ok = self._min_v - 1e-9 <= volts <= self._max_v + 1e-9
+        if not volts_ok and not self.table[70] & 1:
             self.raise_error(HardwareError.INPUT_VOLTAGE)
+        elif volts_ok and self.table[70] & 1 and not self._shutdown & 1:
+            self.table[70] &= ~1 & 0xFF
+            self._dirty = True
         if self.temperature_c > self._temp_limit and not self.table[70] & 4:
             self.raise_error(HardwareError.OVERHEATING)
+        if self._watchdog > 0 and self._torque:
+            expiry = self._heard_at + self._watchdog * WATCHDOG_UNIT_S
+            if expiry < t:
+                self._move(expiry)
+                self._trip_watchdog()
+        self._move(t)
+
+    def _move(self, t: float) -> None:
         dt = t - self._t
         if dt <= 0.0:
             return
@@ -361,6 +398,26 @@ class VirtualServo:
         if self._in_profile and motion.position == self._goal and motion.velocity == 0.0:
             self._in_profile = False
             self._drive = None
+
+    def _trip_watchdog(self) -> None:
+        """Stop where the horn is, Profile Acceleration and Velocity taken as 0 (e-manual):
+        Goal Position becomes the present one, Goal Velocity 0; goals turn read-only."""
+        self.table[98] = _WATCHDOG_ERROR
+        self.motion.velocity = self.motion.acceleration = 0.0
+        self._goal = round(self.motion.position)
+        self.table[116:120] = self._goal.to_bytes(4, "little", signed=True)
+        self.table[104:108] = bytes(4)
+        self._in_profile = False
+        self._sync_params()
+        self._dirty = True
+
+    def heard(self, t: float) -> None:
+        """An instruction packet addressed to this servo arrived at ``t`` (feeds the watchdog)."""
+        self._heard_at = t
+
+    def booting(self, t: float) -> bool:
+        """Still silent at ``t`` after a Reboot or a power-up."""
+        return t < self._ready_at
 
     def _make_drive(self) -> Drive:
         """The table's orders to the motor, kept until a write or a profile's end changes them."""
@@ -492,6 +549,10 @@ class VirtualServo:
             if bounds is not None and not bounds[0] <= value <= bounds[1]:
                 return StatusError.DATA_RANGE
             name = reg.name
+            if self.table[98] == _WATCHDOG_ERROR and (
+                name in _GOALS or (name == "bus_watchdog" and value != 0)
+            ):
+                return StatusError.DATA_RANGE  # only writing 0 to 98 clears the error
             if name == "operating_mode" and value not in _OPERATING_MODES:
                 return StatusError.DATA_RANGE
             if name == "goal_position":
@@ -549,12 +610,15 @@ class VirtualServo:
             self._after_write(64, 65)
         self._dirty = True
 
-    def reboot(self) -> None:
+    def reboot(self, t: float | None = None) -> None:
         """RAM back to its initial values (torque off, errors cleared); EEPROM kept.
 
         The multi-turn count is lost, as at power-up: Present Position comes
-        back within one revolution, and Goal Position is set to it.
+        back within one revolution, and Goal Position is set to it. The servo
+        then boots: it hears nothing for :attr:`boot_time_s` from ``t``
+        (default: the time it was advanced to, that of the instruction).
         """
+        self._ready_at = (self._t if t is None else t) + self.boot_time_s
         fresh = self._initial_table(self.id)
         self.table[64:] = fresh[64:]
         self.registered = None
@@ -565,6 +629,12 @@ class VirtualServo:
         self._in_profile = False
         self._sync_params()
         self._dirty = True
+
+    def power_cycle(self, t: float, off_s: float = 0.0) -> None:
+        """Power lost at ``t`` for ``off_s``, then a boot: RAM at its initial values, torque
+        off, and silent until ``t + off_s + boot_time_s``."""
+        self.reboot(t)
+        self._ready_at += off_s
 
     def factory_reset(self, option: int) -> None:
         """Initial values everywhere (0xFF), except ID (0x01), except ID and baud rate (0x02)."""

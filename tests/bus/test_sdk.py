@@ -1,0 +1,77 @@
+"""The port a real bus runs on waits for bytes without spinning; probes have a bounded wait."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from whexar.bus.emulator.port import EmulatedPort
+from whexar.bus.sdk import DxlBus, WaitingPortHandler
+from whexar.testing.bus import servo_chain
+
+
+@pytest.fixture
+def pty() -> Iterator[tuple[int, WaitingPortHandler]]:
+    master, slave = os.openpty()
+    port = WaitingPortHandler(os.ttyname(slave))
+    assert port.openPort()
+    yield master, port
+    port.closePort()
+    os.close(master)
+    os.close(slave)
+
+
+def _sdk_wait(port: WaitingPortHandler, length: int) -> bytes:
+    """What dynamixel-sdk's ``rxPacket`` does while it waits: read, check the timeout, again."""
+    got = b""
+    while len(got) < length:
+        got += port.readPort(length - len(got))
+        if len(got) < length and port.isPacketTimeout():
+            break
+    return got
+
+
+def test_waiting_for_a_silent_servo_costs_no_cpu(pty: tuple[int, WaitingPortHandler]) -> None:
+    _, port = pty
+    port.setPacketTimeoutMillis(300)
+    wall, cpu = time.perf_counter(), time.thread_time()
+    assert _sdk_wait(port, 11) == b""
+    wall, cpu = time.perf_counter() - wall, time.thread_time() - cpu
+    assert wall >= 0.29  # the SDK's timeout is honoured …
+    assert cpu < 0.03  # … asleep in select(), not polling (the SDK's own port spins: ~0.3 s)
+
+
+def test_bytes_are_returned_as_soon_as_they_arrive(pty: tuple[int, WaitingPortHandler]) -> None:
+    master, port = pty
+    sent: list[float] = []
+
+    def answer() -> None:
+        time.sleep(0.05)
+        sent.append(time.perf_counter())
+        os.write(master, b"\xff\xff\xfd\x00\x01\x04\x00\x55\x00\xa1\x0c")
+
+    threading.Thread(target=answer).start()
+    port.setPacketTimeoutMillis(1000)
+    got = _sdk_wait(port, 11)
+    late = time.perf_counter() - sent[0]
+    assert len(got) == 11
+    assert late < 0.02  # woken by the bytes, not by the timeout
+
+
+def test_a_probe_of_a_dead_servo_waits_only_its_bound() -> None:
+    chain = servo_chain()
+    chain.faults.silent_until = {9: float("inf")}
+    port = EmulatedPort(chain)
+    bus = DxlBus(port)
+    assert not bus.ping(9).ok
+    full = port.take_elapsed()  # the SDK's own timeout: 2 × 16 ms latency + 2 ms + bytes
+    assert not bus.ping(9, timeout_ms=3.0).ok
+    bounded = port.take_elapsed()
+    assert full > 0.034
+    assert bounded < 0.0035
+    assert bus.ping(8, timeout_ms=3.0).ok  # a live servo answers well within it
+    assert port.timeout_cap_ms is None  # the bound was for that ping only
