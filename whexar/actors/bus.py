@@ -175,6 +175,8 @@ _SURVEY = ct.block(
     ]
 )
 """What start-up reads of every servo before it writes anything: one Sync Read of 9–135."""
+_WHEEL_GOAL = ct.block(["goal_velocity"])
+_TORQUE_SPAN = ct.block(["torque_enable"])
 _pack_i32 = struct.Struct("<i").pack
 """Goal Position/Velocity bytes (signed 32-bit, little-endian); goals are clamped first."""
 _MODE_VELOCITY: Final = 1
@@ -612,17 +614,21 @@ class BusScheduler(Actor):
         """A start-up goal (a present or held position) within the limits, an event if not."""
         inside = s.clamp_tick(tick)
         if inside != tick:
-            self.counters["clamped"] += 1
-            self.emit(
-                GoalClamped(
-                    t=self.now(),
-                    source=self.name,
-                    servo_id=s.id,
-                    requested_rad=ct.ticks_to_rad(tick),
-                    sent_rad=ct.ticks_to_rad(inside),
-                )
-            )
+            self._clamped(s, ct.ticks_to_rad(tick), ct.ticks_to_rad(inside))
         return inside
+
+    def _clamped(self, s: _Servo, requested: float, sent: float, unit: str = "rad") -> None:
+        self.counters["clamped"] += 1
+        self.emit(
+            GoalClamped(
+                t=self.now(),
+                source=self.name,
+                servo_id=s.id,
+                requested_rad=requested,
+                sent_rad=sent,
+                unit=unit,
+            )
+        )
 
     async def _enable_torque(self, owner: PortOwner, servos: Sequence[_Servo]) -> None:
         """Write each goal (so torque-on holds still), then torque on, verified, with retries."""
@@ -712,16 +718,7 @@ class BusScheduler(Actor):
             )
             return
         if sent != want:
-            self.counters["clamped"] += 1
-            self.emit(
-                GoalClamped(
-                    t=self.now(),
-                    source=self.name,
-                    servo_id=servo.id,
-                    requested_rad=want,
-                    sent_rad=sent,
-                )
-            )
+            self._clamped(servo, want, sent)
         servo.goal = servo.clamp_tick(ct.rad_to_ticks(sent))
 
     def _take_speed(self, servo: _Servo, g: JointGoal) -> None:
@@ -740,17 +737,7 @@ class BusScheduler(Actor):
             return
         units = max(-servo.speed_limit, min(servo.speed_limit, ct.rad_s_to_velocity(speed)))
         if abs(speed) > limit:
-            self.counters["clamped"] += 1
-            self.emit(
-                GoalClamped(
-                    t=self.now(),
-                    source=self.name,
-                    servo_id=servo.id,
-                    requested_rad=speed,
-                    sent_rad=ct.velocity_to_rad_s(units),
-                    unit="rad/s",
-                )
-            )
+            self._clamped(servo, speed, ct.velocity_to_rad_s(units), "rad/s")
         servo.goal = units
 
     def _writes(self, now: float) -> list[_Write]:
@@ -1183,19 +1170,32 @@ class BusScheduler(Actor):
         await self._park(self.cfg.bus.on_stop)
 
     async def _park(self, how: str) -> None:
-        """Wheels to zero speed, then torque off (or hold, the watchdog disarmed)."""
+        """Wheels to zero speed, then torque off (or hold, the watchdog disarmed), checked.
+
+        The writes are read back (Goal Velocity of the wheels, Torque Enable) and sent once
+        more where they did not take: a stop must stop, and a read behind the writes also
+        makes sure they left the host before the port closes.
+        """
         if self.port_lost:
             return
         live = [s for s in self.servos.values() if s.state != "degraded"]
-        wheels = {s.id: _pack_i32(0) for s in live if s.endless}
+        wheels = [s.id for s in live if s.endless]
         ids = [s.id for s in live]
+        torque = 1 if how == "hold" else 0
 
         def park(bus: DxlBus) -> None:
-            bus.sync_write(_GOAL_VELOCITY.address, 4, wheels)
-            if how == "hold":
-                bus.sync_write(_WATCHDOG.address, 1, dict.fromkeys(ids, b"\x00"))
-            else:
-                bus.sync_write(_TORQUE.address, 1, dict.fromkeys(ids, b"\x00"))
+            for _ in range(2):
+                bus.sync_write(_GOAL_VELOCITY.address, 4, dict.fromkeys(wheels, _pack_i32(0)))
+                if how == "hold":
+                    bus.sync_write(_WATCHDOG.address, 1, dict.fromkeys(ids, b"\x00"))
+                else:
+                    bus.sync_write(_TORQUE.address, 1, dict.fromkeys(ids, b"\x00"))
+                speeds = _read_all(bus, wheels, _WHEEL_GOAL)
+                torques = _read_all(bus, ids, _TORQUE_SPAN)
+                if all(v["goal_velocity"] == 0 for v in speeds.values()) and all(
+                    v["torque_enable"] == torque for v in torques.values()
+                ):
+                    return
 
         try:
             await self.owner.call(park)

@@ -60,8 +60,6 @@ import anyio.to_thread
 from pydantic import Field
 
 from whexar.actors.messages import (
-    AccelImplausible,
-    AccelPlausible,
     BodyTilt,
     ImuSample,
     SensorLinkDown,
@@ -69,6 +67,7 @@ from whexar.actors.messages import (
     SensorLinkStale,
     SensorLinkUp,
 )
+from whexar.actors.sensors import gravity_event
 from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
 from whexar.runtime.actor import Actor, ActorParams, Output
@@ -265,31 +264,18 @@ class ImuReader(Actor):
                 )
             )
         verdict = self.gravity.check(reading.accel_g)
-        if verdict.change == "implausible":
-            self.emit(
-                AccelImplausible(
-                    t=t,
-                    source=self.name,
-                    link=self.link,
-                    sensor="imu",
-                    seq=seq,
-                    accel_g=reading.accel_g,
-                    magnitude_g=verdict.magnitude_g,
-                    tolerance_g=self.gravity.tolerance_g,
-                )
-            )
-        elif verdict.change == "plausible":
-            self.emit(
-                AccelPlausible(
-                    t=t,
-                    source=self.name,
-                    link=self.link,
-                    sensor="imu",
-                    seq=seq,
-                    magnitude_g=verdict.magnitude_g,
-                    withheld=verdict.withheld,
-                )
-            )
+        event = gravity_event(
+            verdict,
+            reading.accel_g,
+            self.gravity.tolerance_g,
+            t=t,
+            source=self.name,
+            link=self.link,
+            sensor="imu",
+            seq=seq,
+        )
+        if event is not None:
+            self.emit(event)
         if verdict.tilt is None:
             return  # not gravity: no tilt
         roll, pitch = verdict.tilt

@@ -83,12 +83,48 @@ from whexar.runtime.actor import Actor, ActorParams, Output
 from whexar.runtime.devices import DEVICES
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.frame import Frame, FrameDecoder, Mode, Rejected
-from whexar.sensors.gravity import GravityCheck
+from whexar.sensors.gravity import GravityCheck, GravityVerdict
 from whexar.sensors.serial_link import ByteLink, SerialLink
 
 EMULATOR: Final = SENSOR_BOARD.scheme
 """The port name of the in-process board; ``emulator:NAME`` opens the board registered as
 NAME (:data:`~whexar.sensors.board_emulator.SENSOR_BOARD`)."""
+
+
+def gravity_event(
+    verdict: GravityVerdict,
+    accel_g: tuple[float, float, float],
+    tolerance_g: float,
+    *,
+    t: float,
+    source: str,
+    link: str,
+    sensor: str,
+    seq: int | None,
+) -> AccelImplausible | AccelPlausible | None:
+    """The event a gravity check's verdict calls for, if its readings changed kind."""
+    if verdict.change == "implausible":
+        return AccelImplausible(
+            t=t,
+            source=source,
+            link=link,
+            sensor=sensor,
+            seq=seq,
+            accel_g=accel_g,
+            magnitude_g=verdict.magnitude_g,
+            tolerance_g=tolerance_g,
+        )
+    if verdict.change == "plausible":
+        return AccelPlausible(
+            t=t,
+            source=source,
+            link=link,
+            sensor=sensor,
+            seq=seq,
+            magnitude_g=verdict.magnitude_g,
+            withheld=verdict.withheld,
+        )
+    return None
 
 
 class SensorReader(Actor):
@@ -323,31 +359,18 @@ class SensorReader(Actor):
         (zx, gx), (zy, gy), (zz, gz) = self._acc
         accel = ((counts[0] - zx) / gx, (counts[1] - zy) / gy, (counts[2] - zz) / gz)
         verdict = self.gravity.check(accel)
-        if verdict.change == "implausible":
-            self.emit(
-                AccelImplausible(
-                    t=self.now(),
-                    source=self.name,
-                    link=self.port,
-                    sensor="board",
-                    seq=seq,
-                    accel_g=accel,
-                    magnitude_g=verdict.magnitude_g,
-                    tolerance_g=self.gravity.tolerance_g,
-                )
-            )
-        elif verdict.change == "plausible":
-            self.emit(
-                AccelPlausible(
-                    t=self.now(),
-                    source=self.name,
-                    link=self.port,
-                    sensor="board",
-                    seq=seq,
-                    magnitude_g=verdict.magnitude_g,
-                    withheld=verdict.withheld,
-                )
-            )
+        event = gravity_event(
+            verdict,
+            accel,
+            self.gravity.tolerance_g,
+            t=self.now(),
+            source=self.name,
+            link=self.port,
+            sensor="board",
+            seq=seq,
+        )
+        if event is not None:
+            self.emit(event)
         if verdict.tilt is None:
             return None
         return verdict.tilt[0], verdict.tilt[1], accel
