@@ -1,7 +1,10 @@
-"""Channels: the three overflow policies, per-subscriber buffers, inboxes and outboxes."""
+"""Channels: the three overflow policies, per-subscriber buffers, inboxes and outboxes,
+and fairness (a turn of port operations per actor)."""
 
 from __future__ import annotations
 
+import asyncio
+import itertools
 from typing import Any
 
 import anyio
@@ -10,10 +13,13 @@ from anyio import WouldBlock
 
 from whexar.runtime.channels import (
     DEFAULT_CAPACITY,
+    STOP_CHECK_WAITS,
+    TURN_OPS,
     Channel,
     Inbox,
     Outbox,
     Policy,
+    Turn,
     capacity_or_default,
 )
 from whexar.runtime.clock import Clock, run
@@ -298,3 +304,149 @@ def test_graph_backpressure_loses_nothing_and_slows_the_publisher() -> None:
     ]
     overruns = [(o.actor, o.cycle, o.elapsed_s, o.skipped) for o in result.events(TickOverrun)]
     assert overruns == [("pulse", 1, 0.625, 4), ("pulse", 6, 0.5, 3)]
+
+
+# --------------------------------------------------------------------------- fairness
+
+
+def test_a_sender_that_never_waits_yields_once_per_turn() -> None:
+    async def main() -> list[int]:
+        ch = Channel("noise", Heartbeat, Policy.LATEST, 1)
+        ch.subscribe("reader")  # latest: a send never has to wait
+        out = Outbox((ch,), Turn())
+        sent = 0
+        others_saw: list[int] = []
+
+        async def other() -> None:
+            while sent < 1000:
+                others_saw.append(sent)
+                await asyncio.sleep(0)
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(other)
+            for i in range(1000):
+                await out.send(beat(i))
+                sent += 1
+        return others_saw
+
+    others_saw = run(main, virtual=True, deadlock_after_s=1.0)
+    # The other task ran while the sender was at it, at least once per turn.
+    assert others_saw[0] < TURN_OPS
+    assert all(b - a <= TURN_OPS for a, b in itertools.pairwise([0, *others_saw, 1000]))
+
+
+def test_a_receiver_of_a_buffer_that_is_never_empty_yields_once_per_turn() -> None:
+    async def main() -> list[int]:
+        queue: asyncio.Queue[Heartbeat] = asyncio.Queue()
+        for i in range(1000):
+            queue.put_nowait(beat(i))
+        inbox = Inbox("backlog", queue, Turn())
+        got = 0
+        others_saw: list[int] = []
+
+        async def other() -> None:
+            while got < 1000:
+                others_saw.append(got)
+                await asyncio.sleep(0)
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(other)
+            for _ in range(1000):
+                await inbox.receive()
+                got += 1
+        return others_saw
+
+    others_saw = run(main, virtual=True, deadlock_after_s=1.0)
+    assert others_saw[0] < TURN_OPS
+    assert all(b - a <= TURN_OPS for a, b in itertools.pairwise([0, *others_saw, 1000]))
+
+
+def test_an_actor_that_waits_every_half_turn_never_yields_for_fairness() -> None:
+    # Ports of one actor share its turn; waiting refills it, so an ordinary
+    # actor keeps the interleaving it had before fairness existed.
+    async def main() -> list[str]:
+        turn = Turn()
+        queue: asyncio.Queue[Heartbeat] = asyncio.Queue()
+        inbox: Inbox[Heartbeat] = Inbox("in", queue, turn)
+        out: Outbox[Heartbeat] = Outbox((), turn)
+        log: list[str] = []
+        done = False
+
+        async def other() -> None:
+            while not done:
+                log.append("other")
+                await asyncio.sleep(0)
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(other)
+            for _ in range(20):
+                for i in range(TURN_OPS // 4):
+                    queue.put_nowait(beat(i))
+                log.append("start")
+                for _ in range(TURN_OPS // 4):  # TURN_OPS / 2 operations in all
+                    await out.send(await inbox.receive())
+                log.append("end")
+                await asyncio.sleep(0)  # the actor waits
+            done = True
+        return log
+
+    log = run(main, virtual=True, deadlock_after_s=1.0)
+    assert log.count("end") == 20
+    in_batch = False
+    for entry in log:
+        if entry in ("start", "end"):
+            in_batch = entry == "start"
+        else:
+            assert not in_batch, "the actor yielded for fairness between two waits"
+
+
+@pytest.mark.usefixtures("hang_guard")
+def test_a_stop_gets_through_a_loop_that_awaits_only_send() -> None:
+    async def main() -> int:
+        out: Outbox[Heartbeat] = Outbox((), Turn())  # unwired: send never has to wait
+        sent = 0
+
+        async def flood() -> None:
+            nonlocal sent
+            while True:
+                await out.send(beat(sent))
+                sent += 1
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(flood)
+            await anyio.sleep(0)  # the flood starts; this task runs again at its yield
+            tg.cancel_scope.cancel()
+        return sent
+
+    assert run(main, virtual=True, deadlock_after_s=1.0) == TURN_OPS - 1
+
+
+def test_a_stop_gets_through_to_the_subscriber_of_a_flooded_channel() -> None:
+    # Every wait of the reader ends at once (the flood refills its buffer before
+    # anyio delivers the cancellation, which then spares it so as not to lose
+    # the message); the reader's own checks let the stop in within a few waits.
+    async def main() -> int:
+        ch = Channel("noise", Heartbeat, Policy.LATEST, 1)
+        inbox = Inbox("noise", ch.subscribe("reader"), Turn())
+        out = Outbox((ch,), Turn())
+        got = 0
+
+        async def flood() -> None:
+            seq = 0
+            while True:
+                await out.send(beat(seq))
+                seq += 1
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(flood)
+            with anyio.CancelScope() as reading:
+                while got < 2_000:  # bounded, should the stop never get through
+                    await inbox.receive()
+                    got += 1
+                    if got == 100:
+                        reading.cancel()
+            tg.cancel_scope.cancel()
+        return got
+
+    got = run(main, virtual=True, deadlock_after_s=1.0)
+    assert 100 <= got <= 100 + STOP_CHECK_WAITS

@@ -355,6 +355,115 @@ def test_a_failure_on_open_that_persists_escalates_during_start() -> None:
     assert stopped(result) == [("dev", "escalated", 0.3125), ("a", "stop", 0.3125)]
 
 
+@pytest.mark.parametrize(
+    ("how", "error"),
+    [
+        ("SystemExit", "SystemExit: flaky: failed at cycle 2"),
+        ("sys.exit", "SystemExit: flaky: failed at cycle 2"),
+        ("KeyboardInterrupt", "KeyboardInterrupt: flaky: failed at cycle 2"),
+    ],
+)
+def test_what_would_end_a_program_is_an_actors_failure_not_an_exit(how: str, error: str) -> None:
+    # Before, SystemExit and KeyboardInterrupt went through the supervisor and
+    # ended the whole run (and this test's process).
+    result = run_actors(
+        graph(
+            actor("first"),
+            actor("flaky", period_s=0.125, fail_after_s=0.25, fail_with=how),
+            restart=RESTART,
+        ),
+        duration=5.0,
+    )
+    failed = result.events(ActorFailed)
+    assert [(f.actor, f.phase, f.error, f.t) for f in failed] == [
+        ("flaky", "run", error, 0.25),
+        ("flaky", "run", error, 0.5625),
+        ("flaky", "run", error, 0.875),
+    ]
+    assert len(result.events(ActorRestarted)) == 2
+    assert [e.actor for e in result.events(ActorEscalated)] == ["flaky"]
+    assert result.exit_code == EXIT_ESCALATED
+    assert stopped(result) == [
+        ("flaky", "escalated", 0.875),
+        ("first", "stop", 0.875),
+    ]
+
+
+def test_a_failure_carries_its_traceback_and_keeps_its_one_line_error() -> None:
+    once = {"max_restarts": 0}
+    result = run_actors(
+        graph(actor("flaky", period_s=0.125, fail_after_s=0.25), restart=once), duration=5.0
+    )
+    (flaky,) = result.events(ActorFailed)
+    assert flaky.error == "InjectedFailure: flaky: failed at cycle 2"
+    lines = flaky.traceback.splitlines()
+    assert lines[0] == "Traceback (most recent call last):"
+    assert lines[-1] == "whexar.testing.actors.InjectedFailure: flaky: failed at cycle 2"
+    assert any('whexar/testing/actors.py", line' in line and "in run" in line for line in lines)
+    assert "raise InjectedFailure(text)" in flaky.traceback  # the line that raised
+    # A failure that raised nothing has no traceback.
+    result = run_actors(
+        graph(actor("slow", open_s=1.0), ready_timeout_s=0.5, restart=once), duration=5.0
+    )
+    (slow,) = result.events(ActorFailed)
+    assert (slow.actor, slow.error, slow.traceback) == (
+        "slow",
+        "did not report ready within 0.5 s",
+        "",
+    )
+
+
+def test_a_safe_stop_hook_or_actor_raising_system_exit_is_reported_and_the_rest_runs() -> None:
+    log = MessageLog()
+    ran: list[str] = []
+
+    async def quits(reason: str) -> None:
+        ran.append("quits")
+        raise SystemExit("hook gave up")
+
+    async def good(reason: str) -> None:
+        ran.append("good")
+
+    spec = graph(
+        actor("arm", here(Parking)),
+        actor("flaky", period_s=0.125, fail_after_s=0.5),
+        restart={"max_restarts": 0},
+    )
+
+    async def main() -> int:
+        runtime = Runtime(build_graph(spec), observer=log, safe_stop_hooks=[quits, good])
+        return await runtime.run(duration=5.0)
+
+    assert run(main, virtual=True, deadlock_after_s=1.0) == EXIT_ESCALATED
+    assert ran == ["quits", "good"]
+    (hook,) = [f for f in log.events(ActorFailed) if f.phase == "safe_stop"]
+    assert hook.error.endswith("quits: SystemExit: hook gave up")
+    assert "SystemExit: hook gave up" in hook.traceback
+    assert [p.who for p in log.events(Parked)] == ["arm"]
+
+
+def test_the_stop_bound_is_the_sum_of_its_bounded_steps() -> None:
+    bounds: list[tuple[float, float]] = []
+    spec = graph(
+        actor("a"),
+        actor("b", here(Parking)),
+        actor("flaky", period_s=0.125, fail_after_s=0.5),
+        stop_timeout_s=0.25,
+        restart={"max_restarts": 0},
+    )
+    runtime: Runtime
+
+    async def hook(reason: str) -> None:
+        bounds.append((runtime.stop_bound_s(), runtime.safe_stop_bound_s()))
+
+    runtime = Runtime(build_graph(spec), safe_stop_hooks=[hook, hook])
+    # Before the run: one stop step per actor.
+    assert runtime.stop_bound_s() == 3 * 0.25
+    assert run(runtime.run, virtual=True, deadlock_after_s=1.0) == EXIT_ESCALATED
+    # Escalated: two hooks and three actors' safe stops come first.
+    assert bounds == [((2 + 3 + 3) * 0.25, (2 + 3) * 0.25)] * 2
+
+
 # --------------------------------------------------------------------------- safe stop
 
 

@@ -496,6 +496,7 @@ class BusScheduler(Actor):
             port = EmulatedPort(chain, now=self.clock.now)
             port.setPortName(name)  # errors name the configured port, as a device's do
             return InlinePortOwner(port, self.clock)
+        self.clock.uses_real_io(f"servo port {name}")  # refused on virtual time, by name
         latency = latency_timer_ms(name)
         if latency is not None and latency > 1:
             device = name.rsplit("/", 1)[-1]

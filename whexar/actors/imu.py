@@ -172,6 +172,7 @@ class ImuReader(Actor):
         """Run a blocking bus call: inline on a fake, in a worker thread on a real bus."""
         if self.inline:
             return fn()
+        self.clock.uses_real_io(f"I²C bus {self.bus_number}")  # refused on virtual time
         return await anyio.to_thread.run_sync(fn)
 
     # ----------------------------------------------------------------- the link

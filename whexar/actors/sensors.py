@@ -195,6 +195,7 @@ class SensorReader(Actor):
     async def _open(self) -> ByteLink:
         if self.port == EMULATOR or self.port.startswith(f"{EMULATOR}:"):
             return self._board().open(self.clock)
+        self.clock.uses_real_io(f"sensor board port {self.port}")  # refused on virtual time
         return await SerialLink.open(self.port, self.baudrate)
 
     # ----------------------------------------------------------------- running

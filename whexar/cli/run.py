@@ -1,13 +1,21 @@
-"""``whexar run``: run an actor graph from a wiring file, printing the runtime's events."""
+"""``whexar run``: run an actor graph from a wiring file, printing the runtime's events.
+
+One line per event; a failure (``ActorFailed``) is followed by its traceback,
+indented under it.
+"""
 
 from __future__ import annotations
 
 import argparse
+import textwrap
 from pathlib import Path
 
 from whexar.cli.common import Commands, seconds
-from whexar.runtime.messages import Message
+from whexar.runtime.messages import ActorFailed, Message
 from whexar.runtime.wiring import EVENTS_CHANNEL
+
+_BELOW = " " * 12
+"""Indent of what follows an event line (a traceback), under the event's name."""
 
 
 def _event_line(channel: str, msg: Message) -> None:
@@ -16,9 +24,11 @@ def _event_line(channel: str, msg: Message) -> None:
     fields = ", ".join(
         f"{name}={getattr(msg, name)!r}"
         for name in msg.__dataclass_fields__
-        if name not in ("t", "source")
+        if name not in ("t", "source", "traceback")
     )
     print(f"{msg.t:10.3f}  {type(msg).__name__:<15} {fields}", flush=True)
+    if isinstance(msg, ActorFailed) and msg.traceback:
+        print(textwrap.indent(msg.traceback.rstrip("\n"), _BELOW), flush=True)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -51,9 +61,11 @@ def add_commands(commands: Commands) -> None:
         "run",
         help="run an actor graph until SIGINT/SIGTERM (or --duration)",
         description="Start the actors of a wiring file in order, supervise them, and stop "
-        "them in reverse order on SIGINT/SIGTERM or after --duration. Prints every runtime "
-        "event. Exit status 0 after a clean stop, 3 after an escalation, 1 if the wiring "
-        "has problems.",
+        "them in reverse order on SIGINT/SIGTERM or after --duration, each step bounded by "
+        "stop_timeout_s; a second SIGINT runs the safe stop and exits at once (status 130). "
+        "Prints every runtime event, and the traceback of every failure. Exit status 0 after "
+        "a clean stop, 3 after an escalation, 1 if the wiring has problems, 2 if virtual time "
+        "refused real I/O (allow it with [runtime] real_io_on_virtual_time = true).",
     )
     run_cmd.add_argument("graph", type=Path, help="wiring file, e.g. config/graphs/demo.toml")
     run_cmd.add_argument(

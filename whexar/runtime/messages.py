@@ -105,12 +105,18 @@ class ActorReady(Event):
 
 @message
 class ActorFailed(Event):
-    """``actor`` raised ``error`` (type and text) while ``phase`` was start or run."""
+    """``actor`` raised ``error`` (type and text) while ``phase`` was start, run or safe_stop.
+
+    ``traceback`` is the formatted traceback of what was raised (empty for a
+    failure that raised nothing: a start that timed out, a ``run()`` that
+    returned before ready).
+    """
 
     actor: str
     incarnation: int
     phase: str
     error: str
+    traceback: str = ""
 
 
 @message

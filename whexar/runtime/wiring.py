@@ -94,6 +94,12 @@ class RuntimeSettings(Section):
     """Buffer of the ``events`` channel per subscriber (a queue: overflow is counted)."""
     restart: RestartPolicy = RestartPolicy()
     """Default restart policy; an actor's own ``restart`` table overrides it."""
+    real_io_on_virtual_time: bool = False
+    """Allow real I/O (a device, a pty, a worker thread) on virtual time; refused otherwise.
+
+    Virtual time runs away while real I/O is pending, so only a graph that
+    means it (a pty in a test, a replay reading a file) says ``true``.
+    """
 
 
 class ActorSpec(Section):

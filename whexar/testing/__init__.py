@@ -8,11 +8,14 @@ Used by whexar's own tests and meant for anyone extending the runtime::
     assert result.exit_code == 0
     beats = result.messages("beats")
 
-See :func:`run_actors`, :class:`Harness` and :class:`MessageLog`; the small
-actors in :mod:`whexar.testing.actors` (``Pulse``, ``Relay``, ``Sink``) are
-importable from the wiring as ``whexar.testing:Pulse`` and so on. One module
-per device adds its graph and helpers: :mod:`~whexar.testing.bus` (the
-robot's emulated servos, a goal source), :mod:`~whexar.testing.sensors`,
+See :func:`run_actors`, :class:`Harness` and :class:`MessageLog`. The small
+actors in :mod:`whexar.testing.actors` are importable from the wiring as
+``whexar.testing:Pulse`` and so on: ``Pulse``, ``Relay`` and ``Sink``, the
+misbehaving ``Flood`` (a tight-loop publisher) and ``Stubborn`` (a cleanup
+that ignores the stop), ``Brake``, which stands for the servos in a safe
+stop, and ``RealIO``, which waits on real I/O. One module per device adds
+its graph and helpers: :mod:`~whexar.testing.bus` (the robot's emulated
+servos, a goal source), :mod:`~whexar.testing.sensors`,
 :mod:`~whexar.testing.imu`; :mod:`~whexar.testing.thesis` holds reference
 values of the thesis. The emulators themselves belong to their device
 packages (:mod:`whexar.bus.emulator`, :mod:`whexar.sensors.board_emulator`,
@@ -22,7 +25,17 @@ May import: :mod:`whexar.actors` and everything below it; never the
 benchmarks or the command line.
 """
 
-from whexar.testing.actors import InjectedFailure, Pulse, Relay, Sink
+from whexar.testing.actors import (
+    Brake,
+    Braked,
+    Flood,
+    InjectedFailure,
+    Pulse,
+    RealIO,
+    Relay,
+    Sink,
+    Stubborn,
+)
 from whexar.testing.harness import (
     HARNESS,
     Harness,
@@ -36,15 +49,20 @@ from whexar.testing.imu import imu_graph
 
 __all__ = [
     "HARNESS",
+    "Brake",
+    "Braked",
+    "Flood",
     "Harness",
     "InjectedFailure",
     "LogEntry",
     "MessageLog",
     "Pulse",
+    "RealIO",
     "Relay",
     "RunResult",
     "Scenario",
     "Sink",
+    "Stubborn",
     "imu_graph",
     "run_actors",
 ]

@@ -204,6 +204,7 @@ def run_actors(
     virtual: bool = True,
     handle_signals: bool = False,
     deadlock_after_s: float | None = 10.0,
+    real_io: bool = False,
 ) -> RunResult:
     """Run ``graph`` (on virtual time by default) and return everything it published.
 
@@ -212,6 +213,11 @@ def run_actors(
     run ends (its duration is over, an actor was escalated) is cancelled.
     ``feeds`` names the channels the scenario publishes on. An exception in
     the scenario (a failed assert) propagates unwrapped.
+
+    On virtual time, real I/O (a pty, a socket, a worker thread) is refused
+    with :class:`~whexar.runtime.clock.VirtualTimeRealIOError` unless
+    ``real_io=True`` (or the graph's ``real_io_on_virtual_time``) says the
+    test means it: virtual time runs away while real I/O is pending.
     """
     if not isinstance(graph, Graph):
         graph = build_graph(graph, external=dict.fromkeys(feeds, HARNESS))
@@ -237,7 +243,7 @@ def run_actors(
         return runtime.clock.now()
 
     try:
-        end = run_loop(main, virtual=virtual, deadlock_after_s=deadlock_after_s)
+        end = run_loop(main, virtual=virtual, deadlock_after_s=deadlock_after_s, real_io=real_io)
     except BaseExceptionGroup as group:
         raise _leaf(group) from None
     return RunResult(
