@@ -10,6 +10,7 @@ from collections.abc import Iterator
 import pytest
 
 from whexar.bus.emulator.port import EmulatedPort
+from whexar.bus.protocol import Instruction
 from whexar.bus.sdk import DxlBus, WaitingPortHandler
 from whexar.testing.bus import servo_chain
 
@@ -75,3 +76,36 @@ def test_a_probe_of_a_dead_servo_waits_only_its_bound() -> None:
     assert bounded < 0.0035
     assert bus.ping(8, timeout_ms=3.0).ok  # a live servo answers well within it
     assert port.timeout_cap_ms is None  # the bound was for that ping only
+
+
+def test_writes_riding_on_a_read_go_out_once_its_last_status_is_in() -> None:
+    chain = servo_chain()
+    seen: list[tuple[float, int]] = []
+    chain.hooks.append(lambda _c, t, ps: seen.extend((t, p.instruction) for p in ps))
+    port = EmulatedPort(chain)
+    bus = DxlBus(port)
+    goals = bus.prepare_sync_write(116, 4, {3: (2100).to_bytes(4, "little")})
+    ids = list(range(1, 43))
+    result = bus.sync_read(ids, 132, 4, then=[goals])
+    assert result.ok
+    assert result.sent == [0]
+    assert len(result.data) == 42  # every status decoded, the write sent in between
+    (t_read, first), (t_write, second) = seen
+    assert (first, second) == (Instruction.SYNC_READ, Instruction.SYNC_WRITE)
+    read_cost = chain.timing.sync_read_s(42, 4, chain.servos[1].return_delay_s)
+    assert t_write == pytest.approx(t_read + read_cost)  # after the last status, not before
+    port.take_elapsed()
+    chain.advance(1.0)
+    assert chain.servos[3].goal == 2100
+
+
+def test_writes_riding_on_a_failed_read_go_out_after_it() -> None:
+    chain = servo_chain()
+    chain.faults.silent_until = {42: float("inf")}  # the last servo never answers
+    bus = DxlBus(EmulatedPort(chain))
+    goals = bus.prepare_sync_write(116, 4, {3: (2100).to_bytes(4, "little")})
+    result = bus.sync_read(list(range(1, 43)), 132, 4, then=[goals])
+    assert not result.ok
+    assert result.failed == 42
+    assert result.sent == [0]
+    assert chain.servos[3].goal == 2100

@@ -177,6 +177,8 @@ _SURVEY = ct.block(
 """What start-up reads of every servo before it writes anything: one Sync Read of 9–135."""
 _WHEEL_GOAL = ct.block(["goal_velocity"])
 _TORQUE_SPAN = ct.block(["torque_enable"])
+_RAD_PER_TICK: Final = ct.ticks_to_rad(ct.CENTER_TICKS + 1)
+_RAD_S_PER_UNIT: Final = ct.velocity_to_rad_s(1)
 _pack_i32 = struct.Struct("<i").pack
 """Goal Position/Velocity bytes (signed 32-bit, little-endian); goals are clamped first."""
 _MODE_VELOCITY: Final = 1
@@ -236,6 +238,8 @@ class _Servo:
     """When a packet last addressed it (what feeds its Bus Watchdog)."""
     warning: int = 0
     """Non-latching Hardware Error Status bits last seen (input voltage, by default)."""
+    current_unit: float = 0.0
+    """A per unit of Present Current (Present Load's unit on the MX-28), set in ``_setup``."""
     next_check: float = 0.0
     """While a warning stands (every status has the Alert bit), when to read 70 again."""
     from_degraded: bool = False
@@ -288,7 +292,7 @@ class _Request:
 
 @dataclass(slots=True)
 class _Write:
-    """One Sync Write of a cycle: the register, and the value sent to each servo."""
+    """One Sync Write of a cycle: a goal register (4 bytes, signed), the value per servo."""
 
     register: ct.Register
     values: dict[int, int]
@@ -313,13 +317,28 @@ def _cycle_job(
 
     def job(bus: DxlBus) -> _Outcome:
         out = _Outcome()
-        for req in requests:
+        # The writes are built first: after the last status of the reads they go out at once.
+        packets = [
+            bus.prepare_sync_write(
+                w.register.address,
+                w.register.size,  # goals: 4 bytes, signed — one precompiled struct
+                {sid: _pack_i32(v) for sid, v in w.values.items()},
+            )
+            for w in writes
+        ]
+        unsent = True
+        for k, req in enumerate(requests):
             merged = SyncReadResult(COMM_SUCCESS)
             remaining = list(req.ids)
             use_fast = fast
             attempts = 0
             while remaining:
-                res = bus.sync_read(remaining, req.start, req.length, fast=use_fast)
+                # The writes ride on the cycle's last read: out as soon as the bus is free.
+                then = packets if unsent and k == len(requests) - 1 else ()
+                res = bus.sync_read(remaining, req.start, req.length, fast=use_fast, then=then)
+                if then:
+                    out.write_results.extend(res.sent)
+                    unsent = False
                 out.bytes += sum(sync_read_bytes(len(remaining), req.length, fast=use_fast))
                 merged.data.update(res.data)
                 merged.errors.update(res.errors)
@@ -342,11 +361,10 @@ def _cycle_job(
                 remaining = remaining[1:]
                 attempts = 0
             out.reads.append(merged)
+        if unsent:
+            out.write_results.extend(bus.send(packet) for packet in packets)
         for w in writes:
-            size = w.register.size
-            data = {sid: w.register.encode(v) for sid, v in w.values.items()}
-            out.write_results.append(bus.sync_write(w.register.address, size, data))
-            out.bytes += sync_write_bytes(len(data), size)
+            out.bytes += sync_write_bytes(len(w.values), w.register.size)
         return out
 
     return job
@@ -440,6 +458,8 @@ class BusScheduler(Actor):
                     JOINT_NAMES[j] in CRITICAL_JOINTS,
                     model.register("velocity_limit").initial or 0,
                 )
+        for s in self.servos.values():
+            s.current_unit = ct.current_to_a(1, s.model)
         self.by_joint = {(s.leg, s.joint): s for s in self.servos.values()}
         ordered = sorted(self.servos.values(), key=lambda s: s.id)
         self.reads = []
@@ -470,6 +490,10 @@ class BusScheduler(Actor):
         self.nominal_s = DEFAULT_NOMINAL_S
         self.measured = False
         self.supply_low = False
+        self.warned: set[int] = set()
+        """Servos with a standing non-latching error (their clean status clears it)."""
+        self.out: set[int] = set()
+        """Servos out of the cycle: booting or degraded (the ones :meth:`_poll` visits)."""
         self.port_lost = False
         self.lost = False
         """Set with :class:`BusLost`: the cycle stops; only the safe stop touches the bus."""
@@ -720,7 +744,8 @@ class BusScheduler(Actor):
             return
         if sent != want:
             self._clamped(servo, want, sent)
-        servo.goal = servo.clamp_tick(ct.rad_to_ticks(sent))
+        tick = ct.CENTER_TICKS + round(sent / _RAD_PER_TICK)  # ct.rad_to_ticks, inlined
+        servo.goal = servo.lo_tick if tick < servo.lo_tick else min(tick, servo.hi_tick)
 
     def _take_speed(self, servo: _Servo, g: JointGoal) -> None:
         speed = g.velocity_rad_s
@@ -841,21 +866,25 @@ class BusScheduler(Actor):
         self, t: float, values: Mapping[int, Mapping[str, int]], errors: Mapping[int, int]
     ) -> None:
         joints = []
+        servos = self.servos
+        # The conversions of whexar.bus.control_table, inlined: 42 servos every cycle.
         for sid, regs in sorted(values.items()):
-            s = self.servos[sid]
             pos = regs.get("present_position")
             vel = regs.get("present_velocity")
-            cur = regs.get("present_current", regs.get("present_load"))
+            cur = regs.get("present_current")
+            if cur is None:
+                cur = regs.get("present_load")
             if pos is None and vel is None and cur is None:
                 continue
+            s = servos[sid]
             joints.append(
                 JointState(
                     s.leg,
                     s.joint,
                     sid,
-                    None if pos is None else ct.ticks_to_rad(pos),
-                    None if vel is None else ct.velocity_to_rad_s(vel),
-                    None if cur is None else ct.current_to_a(cur, s.model),
+                    None if pos is None else (pos - ct.CENTER_TICKS) * _RAD_PER_TICK,
+                    None if vel is None else vel * _RAD_S_PER_UNIT,
+                    None if cur is None else cur * s.current_unit,
                     bool(errors.get(sid, 0) & ALERT),
                 )
             )
@@ -905,10 +934,17 @@ class BusScheduler(Actor):
         s.next_probe = self.now() + self.cfg.bus.probe_period_s
         if s.state == "degraded":  # a failed probe of a degraded servo: no new event
             return
-        s.state = "degraded"
+        self._set_state(s, "degraded")
         self.emit(ServoDegraded(t=self.now(), source=self.name, servo_id=s.id, reason=reason))
         if s.critical:
             self._lose(f"{s.name} lost: {reason}")
+
+    def _set_state(self, s: _Servo, state: State) -> None:
+        s.state = state
+        if state == "ok":
+            self.out.discard(s.id)
+        else:
+            self.out.add(s.id)
 
     def _lose(self, reason: str) -> None:
         self.lost = True
@@ -925,7 +961,11 @@ class BusScheduler(Actor):
     ) -> bool:
         """Hardware errors, warnings, booting and degraded servos; True if the bus was used."""
         busy = False
-        for sid in sorted(set(errors) | set(values)):
+        # Only servos with something to say: an Alert, error bits read, a standing warning.
+        suspects = {sid for sid, err in errors.items() if err & ALERT}
+        suspects.update(sid for sid, regs in values.items() if regs.get("hardware_error_status"))
+        suspects.update(self.warned.intersection(errors, values))
+        for sid in sorted(suspects):
             s = self.servos[sid]
             if not s.live:
                 continue
@@ -948,8 +988,9 @@ class BusScheduler(Actor):
             if bits & s.shutdown:
                 await self._reboot(owner, s, bits)
                 busy = True
-        self._supply()
-        return await self._poll(owner) or busy
+        if self.out:
+            busy = await self._poll(owner) or busy
+        return busy
 
     def _warn(self, s: _Servo, bits: int) -> None:
         """Report a change of ``s``'s non-latching error bits."""
@@ -957,6 +998,10 @@ class BusScheduler(Actor):
             return
         changed = bits if bits else s.warning
         s.warning = bits
+        if bits:
+            self.warned.add(s.id)
+        else:
+            self.warned.discard(s.id)
         self.emit(
             HardwareWarning(
                 t=self.now(),
@@ -967,6 +1012,7 @@ class BusScheduler(Actor):
                 active=bool(bits),
             )
         )
+        self._supply()
 
     def _supply(self) -> None:
         low = tuple(
@@ -992,8 +1038,9 @@ class BusScheduler(Actor):
         )
         reply = await owner.call(lambda bus: bus.reboot(s.id))
         self.emit(ServoRebooted(t=self.now(), source=self.name, servo_id=s.id, ok=reply.ok))
-        s.state = "booting"
+        self._set_state(s, "booting")
         s.warning = 0
+        self.warned.discard(s.id)
         s.boot_deadline = self.now() + self.cfg.bus.boot_timeout_s
         s.next_probe = self.now() + BOOT_POLL_S
 
@@ -1004,7 +1051,7 @@ class BusScheduler(Actor):
     async def _poll(self, owner: PortOwner) -> bool:
         """Ping the booting or degraded servo whose turn has come (one per cycle at most)."""
         now = self.now()
-        waiting = [s for s in self.servos.values() if not s.live and now >= s.next_probe]
+        waiting = [s for sid in self.out if now >= (s := self.servos[sid]).next_probe]
         if not waiting:
             return False
         s = min(waiting, key=lambda x: (x.next_probe, x.id))
@@ -1050,17 +1097,17 @@ class BusScheduler(Actor):
             self._recovered(s)
             await self._detect_fast(owner, f"{s.name} recovered")
         else:
-            s.state = "ok"
+            self._set_state(s, "ok")
             s.failures = 0
 
     def _degrade_after_boot(self, s: _Servo, reason: str) -> None:
         """A reboot did not bring ``s`` back: degraded (an event unless it already was)."""
-        s.state = "degraded" if s.from_degraded else "ok"
+        self._set_state(s, "degraded" if s.from_degraded else "ok")
         s.from_degraded = False
         self._degrade(s, reason)
 
     def _recovered(self, s: _Servo) -> None:
-        s.state = "ok"
+        self._set_state(s, "ok")
         s.failures = 0
         s.from_degraded = False
         self.emit(ServoRecovered(t=self.now(), source=self.name, servo_id=s.id))

@@ -26,8 +26,14 @@ and reports nothing. Fast Sync Read uses ``syncReadTx(fast)`` and
 A real port is a :class:`WaitingPortHandler`: the SDK's ``PortHandler``
 opens pyserial with ``timeout=0`` and its packet loop polls ``readPort``
 without sleeping, which burns a core and holds the GIL against every other
-thread; this one waits for bytes in ``select()`` until the SDK's own packet
+thread; this one waits for bytes in ``poll()`` until the SDK's own packet
 deadline, so the owning thread sleeps while the servos talk.
+
+A cycle's goal writes are built by the SDK before its reads
+(:meth:`DxlBus.prepare_sync_write`) and ride on the last read
+(``sync_read(…, then=…)``): they go out the moment the last servo's status
+packet is complete in the port's buffer — the half-duplex bus is free — while
+the statuses are still being decoded.
 
 Port errors (a vanished USB device raises ``OSError`` in pyserial) become
 :class:`~whexar.errors.DeviceGoneError`.
@@ -37,6 +43,9 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
+import math
+import os
 import queue
 import select
 import threading
@@ -123,6 +132,8 @@ class SyncReadResult:
     data: dict[int, bytes] = field(default_factory=dict)
     errors: dict[int, int] = field(default_factory=dict)
     failed: int | None = None
+    sent: list[int] = field(default_factory=list)
+    """Result codes of the packets sent after the read (``then`` of :meth:`DxlBus.sync_read`)."""
 
     @property
     def ok(self) -> bool:
@@ -140,6 +151,29 @@ class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
 
     def updateCRC(self, crc_accum: int, data_blk_ptr: Any, data_blk_size: int) -> int:  # noqa: N802
         return crc16(bytes(data_blk_ptr[:data_blk_size]), crc_accum)
+
+
+class _Capture:
+    """A port that keeps the packet the SDK writes to it instead of sending it."""
+
+    is_using = False
+    timeout_cap_ms: float | None = None
+
+    def __init__(self) -> None:
+        self.packet = b""
+
+    def clearPort(self) -> None:  # noqa: N802 — the SDK's names
+        pass
+
+    def writePort(self, packet: Any) -> int:  # noqa: N802
+        self.packet = bytes(packet)
+        return len(self.packet)
+
+    def readPort(self, length: int) -> bytes:  # noqa: N802
+        return b""
+
+    def getBaudRate(self) -> int:  # noqa: N802
+        return 1_000_000
 
 
 class DxlBus:
@@ -200,29 +234,85 @@ class DxlBus:
         """One Sync Write of ``length`` bytes at ``start`` per servo; the SDK result."""
         if not values:
             return COMM_SUCCESS
+        return self.send(self.prepare_sync_write(start, length, values))
+
+    def prepare_sync_write(self, start: int, length: int, values: Mapping[int, bytes]) -> bytes:
+        """The Sync Write packet, built by the SDK now, to :meth:`send` later.
+
+        A cycle builds its goal writes before its reads, while the bus is busy
+        anyway: once the last status arrives, the writes go out at once.
+        """
         param: list[int] = []
         for servo, data in values.items():
             param.append(servo)
             param.extend(data)
+        capture = _Capture()
+        self.ph.syncWriteTxOnly(capture, start, length, param, len(param))
+        return capture.packet
+
+    def send(self, packet: bytes) -> int:
+        """Send a packet that needs no status (a prepared Sync Write); the SDK result code."""
+        if self.port.is_using:
+            return int(dxl.COMM_PORT_BUSY)
+        return self._write(packet)
+
+    def _write(self, packet: bytes) -> int:
         with self._gone():
-            result: int = self.ph.syncWriteTxOnly(self.port, start, length, param, len(param))
-        return result
+            # No clearPort() as the SDK's txPacket does: nothing answers this packet, and the
+            # next transaction that waits for an answer clears the input first.
+            written = self.port.writePort(packet)
+        return COMM_SUCCESS if written == len(packet) else int(dxl.COMM_TX_FAIL)
 
     def sync_read(
-        self, ids: Sequence[int], start: int, length: int, *, fast: bool = False
+        self,
+        ids: Sequence[int],
+        start: int,
+        length: int,
+        *,
+        fast: bool = False,
+        then: Sequence[bytes] = (),
     ) -> SyncReadResult:
-        """One Sync Read (or Fast Sync Read) of ``length`` bytes at ``start`` from ``ids``."""
+        """One Sync Read (or Fast Sync Read) of ``length`` bytes at ``start`` from ``ids``.
+
+        ``then``: packets that need no answer (prepared Sync Writes), sent as soon
+        as the bus is free again — once the last servo's status packet lies complete
+        in the port's buffer, before the others are decoded — or after the read
+        when that cannot be seen. Their results are :attr:`SyncReadResult.sent`.
+        """
         if not ids:
-            return SyncReadResult(COMM_SUCCESS)
+            return SyncReadResult(COMM_SUCCESS, sent=[self.send(p) for p in then])
         with self._gone():
             result = self.ph.syncReadTx(self.port, start, length, list(ids), len(ids), fast)
             if result != COMM_SUCCESS:
-                return SyncReadResult(result, failed=ids[0])
-            return self._fast_rx(ids, length) if fast else self._rx(ids, length)
+                out = SyncReadResult(result, failed=ids[0])
+            else:
+                out = self._fast_rx(ids, length) if fast else self._rx(ids, length, then)
+        if len(out.sent) < len(then):
+            out.sent = [self.send(p) for p in then]
+        return out
 
-    def _rx(self, ids: Sequence[int], length: int) -> SyncReadResult:
+    def _tail_complete(self, last: int, length: int) -> bool:
+        """The last servo's status packet is whole at the end of the port's buffer: nothing
+        more will answer, so the half-duplex bus is free (a stuffed packet is not matched)."""
+        peek = getattr(self.port, "peek", None)
+        if peek is None:
+            return False
+        buf: bytes = peek()
+        n = 11 + length
+        return (
+            len(buf) >= n
+            and buf[-n : -n + 5] == bytes((0xFF, 0xFF, 0xFD, 0x00, last))
+            and buf[-n + 5] | (buf[-n + 6] << 8) == n - 7
+        )
+
+    def _rx(self, ids: Sequence[int], length: int, then: Sequence[bytes] = ()) -> SyncReadResult:
         out = SyncReadResult(COMM_SUCCESS)
+        pending = bool(then)
         for servo in ids:
+            if pending and self._tail_complete(ids[-1], length):
+                # Mid-read the SDK still marks the port in use; the bus itself is free.
+                out.sent = [self._write(p) for p in then]
+                pending = False
             data, result, error = self.ph.readRx(self.port, servo, length)
             if result != COMM_SUCCESS:
                 out.result, out.failed = result, servo
@@ -363,11 +453,15 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
 
     The SDK reads with ``timeout=0`` in a loop until its packet deadline
     (``setPacketTimeout``: bytes × 10/baud + 2 × 16 ms + 2 ms). Here a read
-    that finds nothing waits in ``select()`` — no CPU, the GIL released —
+    that finds nothing waits in ``poll()`` — no CPU, the GIL released —
     until bytes arrive or that deadline passes; a read that finds bytes
-    returns them at once, so nothing is slower than the SDK's loop. The
-    deadline is kept on :func:`whexar.runtime.clock.monotonic` (the SDK's own
-    uses the wall clock, which may jump).
+    returns them at once, so nothing is slower than the SDK's loop. Each
+    system read takes everything that has arrived (a USB adapter hands over
+    a millisecond's worth at a time) and the SDK's small reads, a status
+    packet's header then its body, are served from that: one system call
+    per chunk, not two per servo. The deadline is kept on
+    :func:`whexar.runtime.clock.monotonic` (the SDK's own uses the wall
+    clock, which may jump).
     """
 
     timeout_cap_ms: float | None = None
@@ -375,6 +469,8 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
     packet_start_time: float
     packet_timeout: float
     ser: Any
+    _CHUNK: Final = 4096
+    """Bytes taken from the OS per read: more than any reply of 42 servos."""
 
     def getCurrentTime(self) -> float:  # noqa: N802 — the SDK's name; milliseconds
         return monotonic() * 1000.0
@@ -385,15 +481,45 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
         if self.timeout_cap_ms is not None:
             self.packet_timeout = min(armed, self.timeout_cap_ms)
 
+    def setupPort(self, cflag_baud: int) -> bool:  # noqa: N802
+        self._rx = bytearray()
+        ok: bool = super().setupPort(cflag_baud)
+        self._fd: int = self.ser.fileno()
+        self._poll = select.poll()
+        self._poll.register(self._fd, select.POLLIN)
+        return ok
+
+    def clearPort(self) -> None:  # noqa: N802
+        self._rx.clear()
+        super().clearPort()
+
+    def getBytesAvailable(self) -> int:  # noqa: N802
+        waiting: int = self.ser.in_waiting
+        return len(self._rx) + waiting
+
+    def peek(self) -> bytes:
+        """The bytes received and not yet read (what :meth:`DxlBus.sync_read` looks at)."""
+        return bytes(self._rx)
+
     def readPort(self, length: int) -> bytes:  # noqa: N802
-        data: bytes = self.ser.read(length)  # timeout=0: whatever has arrived
-        if data:
-            return data
-        deadline_ms: float = self.packet_start_time + self.packet_timeout
-        left_ms = deadline_ms - self.getCurrentTime()
-        if left_ms > 0:
-            select.select([self.ser.fileno()], [], [], left_ms / 1000.0)
-            data = self.ser.read(length)
+        rx = self._rx
+        if not rx:
+            # poll() returns at once when bytes are there, else sleeps until they come or
+            # the packet deadline passes; then one read takes all that arrived (the fd is
+            # non-blocking: pyserial opened it so).
+            deadline_ms: float = self.packet_start_time + self.packet_timeout
+            left_ms = max(0.0, deadline_ms - self.getCurrentTime())
+            if self._poll.poll(math.ceil(left_ms)):
+                try:
+                    got = os.read(self._fd, self._CHUNK)
+                except BlockingIOError:  # a spurious wake-up: nothing yet
+                    got = None
+                if got == b"":  # readable yet empty: the device is gone (as pyserial says)
+                    raise OSError(errno.EIO, "device reports readiness but returned no data")
+                if got:
+                    rx += got
+        data = bytes(rx[:length])
+        del rx[:length]
         return data
 
 

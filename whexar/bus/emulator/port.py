@@ -116,6 +116,10 @@ class EmulatedPort:
         """Received bytes not yet read."""
         return len(self._rx)
 
+    def peek(self) -> bytes:
+        """The received bytes not yet read."""
+        return bytes(self._rx)
+
     def readPort(self, length: int) -> bytes:  # noqa: N802
         """Up to ``length`` received bytes; ``OSError(EIO)`` when unplugged."""
         self._check_plugged()
