@@ -8,7 +8,7 @@ left with (the emulator's control tables).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -39,8 +39,9 @@ from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES, servo_id
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed, ActorStopped, Event, SafeStop
-from whexar.testing import Harness, RunResult, run_actors
+from whexar.testing import Harness, RunResult
 from whexar.testing.bus import bus_graph, servo_chain
+from whexar.testing.bus import run_bus as run
 
 CFG = RobotConfig()
 FAULT_PLANS = Path(__file__).resolve().parents[2] / "config" / "faults"
@@ -75,14 +76,6 @@ RECOVERY_EVENTS = (
 # --------------------------------------------------------------------------- helpers
 
 
-@pytest.fixture
-def chain() -> Iterator[ServoChain]:
-    made = servo_chain(CFG)
-    DEVICES.register(SERVO_CHAIN, "test", made)
-    yield made
-    DEVICES.unregister(SERVO_CHAIN, "test")
-
-
 def inject(chain: ServoChain, *faults: Fault, seed: int = 0) -> FaultInjector:
     return FaultInjector(FaultPlan(seed=seed, faults=list(faults))).attach(chain)
 
@@ -95,15 +88,6 @@ def graph(params: dict[str, Any] | None = None, *, wiggle: bool = False) -> dict
         wiggle={} if wiggle else None,
         max_restarts=0,
     )
-
-
-def run(
-    g: dict[str, Any],
-    scenario: Callable[[Harness], Any] | None = None,
-    duration: float | None = None,
-) -> RunResult:
-    feeds = [] if any(a["name"] == "wiggle" for a in g["actors"]) else ["goals"]
-    return run_actors(g, duration=duration, scenario=scenario, feeds=feeds)
 
 
 def table(chain: ServoChain, sid: int, name: str) -> int:

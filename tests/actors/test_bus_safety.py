@@ -10,7 +10,7 @@ from __future__ import annotations
 import itertools
 import math
 import statistics
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import pytest
@@ -34,15 +34,15 @@ from whexar.actors.messages import (
     WriteFailed,
 )
 from whexar.bus import control_table as ct
-from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
+from whexar.bus.emulator.chain import ServoChain
 from whexar.bus.emulator.faults import Fault, FaultInjector, FaultPlan
 from whexar.bus.protocol import Instruction, Packet
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, POSITIONING_JOINTS, servo_id
-from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed
-from whexar.testing import Harness, RunResult, run_actors
-from whexar.testing.bus import bus_graph, servo_chain
+from whexar.testing import Harness
+from whexar.testing.bus import bus_graph
+from whexar.testing.bus import run_bus as run
 
 CFG = RobotConfig()
 WHEEL = JOINT_NAMES.index("wheel")
@@ -50,25 +50,8 @@ FEMUR = JOINT_NAMES.index("femur")
 WHEELS = [servo_id(leg, "wheel") for leg in range(6)]
 
 
-@pytest.fixture
-def chain() -> Iterator[ServoChain]:
-    made = servo_chain(CFG)
-    DEVICES.register(SERVO_CHAIN, "test", made)
-    yield made
-    DEVICES.unregister(SERVO_CHAIN, "test")
-
-
 def graph(params: dict[str, Any] | None = None, **wiggle: Any) -> dict[str, Any]:
     return bus_graph("emulator:test", params, wiggle=wiggle if wiggle else None, max_restarts=0)
-
-
-def run(
-    g: dict[str, Any],
-    scenario: Callable[[Harness], Any] | None = None,
-    duration: float | None = None,
-) -> RunResult:
-    feeds = [] if any(a["name"] == "wiggle" for a in g["actors"]) else ["goals"]
-    return run_actors(g, duration=duration, scenario=scenario, feeds=feeds)
 
 
 def table(chain: ServoChain, sid: int, name: str) -> int:

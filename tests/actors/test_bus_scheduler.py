@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import pytest
@@ -32,14 +32,6 @@ CFG = RobotConfig()
 FEMUR = JOINT_NAMES.index("femur")
 TIBIA = JOINT_NAMES.index("tibia")
 COXA = JOINT_NAMES.index("coxa")
-
-
-@pytest.fixture
-def chain() -> Iterator[ServoChain]:
-    made = servo_chain(CFG)
-    DEVICES.register(SERVO_CHAIN, "test", made)
-    yield made
-    DEVICES.unregister(SERVO_CHAIN, "test")
 
 
 def graph(

@@ -13,6 +13,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
 
@@ -413,6 +414,21 @@ def test_a_failure_carries_its_traceback_and_keeps_its_one_line_error() -> None:
     )
 
 
+def _escalate_with_hooks(log: MessageLog, *hooks: Callable[[str], Awaitable[None]]) -> int:
+    """A parked arm and an actor that escalates at 0.5 s, with ``hooks`` for the safe stop."""
+    spec = graph(
+        actor("arm", here(Parking)),
+        actor("flaky", period_s=0.125, fail_after_s=0.5),
+        restart={"max_restarts": 0},
+    )
+
+    async def main() -> int:
+        runtime = Runtime(build_graph(spec), observer=log, safe_stop_hooks=list(hooks))
+        return await runtime.run(duration=5.0)
+
+    return run(main, virtual=True, deadlock_after_s=1.0)
+
+
 def test_a_safe_stop_hook_or_actor_raising_system_exit_is_reported_and_the_rest_runs() -> None:
     log = MessageLog()
     ran: list[str] = []
@@ -424,17 +440,7 @@ def test_a_safe_stop_hook_or_actor_raising_system_exit_is_reported_and_the_rest_
     async def good(reason: str) -> None:
         ran.append("good")
 
-    spec = graph(
-        actor("arm", here(Parking)),
-        actor("flaky", period_s=0.125, fail_after_s=0.5),
-        restart={"max_restarts": 0},
-    )
-
-    async def main() -> int:
-        runtime = Runtime(build_graph(spec), observer=log, safe_stop_hooks=[quits, good])
-        return await runtime.run(duration=5.0)
-
-    assert run(main, virtual=True, deadlock_after_s=1.0) == EXIT_ESCALATED
+    assert _escalate_with_hooks(log, quits, good) == EXIT_ESCALATED
     assert ran == ["quits", "good"]
     (hook,) = [f for f in log.events(ActorFailed) if f.phase == "safe_stop"]
     assert hook.error.endswith("quits: SystemExit: hook gave up")
@@ -549,17 +555,7 @@ def test_a_failing_hook_does_not_skip_the_rest_of_the_safe_stop() -> None:
     async def good(reason: str) -> None:
         ran.append("good")
 
-    spec = graph(
-        actor("arm", here(Parking)),
-        actor("flaky", period_s=0.125, fail_after_s=0.5),
-        restart={"max_restarts": 0},
-    )
-
-    async def main() -> int:
-        runtime = Runtime(build_graph(spec), observer=log, safe_stop_hooks=[broken, good])
-        return await runtime.run(duration=5.0)
-
-    assert run(main, virtual=True, deadlock_after_s=1.0) == EXIT_ESCALATED
+    assert _escalate_with_hooks(log, broken, good) == EXIT_ESCALATED
     assert ran == ["broken", "good"]
     hook_failures = [(f.actor, f.phase, f.error) for f in log.events(ActorFailed) if f.t == 0.5]
     assert hook_failures[-1][0] == "runtime"

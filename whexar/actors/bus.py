@@ -490,10 +490,6 @@ class BusScheduler(Actor):
         self.nominal_s = DEFAULT_NOMINAL_S
         self.measured = False
         self.supply_low = False
-        self.warned: set[int] = set()
-        """Servos with a standing non-latching error (their clean status clears it)."""
-        self.out: set[int] = set()
-        """Servos out of the cycle: booting or degraded (the ones :meth:`_poll` visits)."""
         self.port_lost = False
         self.lost = False
         """Set with :class:`BusLost`: the cycle stops; only the safe stop touches the bus."""
@@ -565,31 +561,32 @@ class BusScheduler(Actor):
             if problems:
                 raise DeviceError("servo set-up failed: " + "; ".join(problems))
         await self._detect_fast(owner, "start-up")
-        holding = [s for s in servos if s.id not in changes and survey[s.id]["torque_enable"] == 1]
-        limp = [s for s in servos if s not in holding]
+        holding = {s.id for s in servos if s.id not in changes and survey[s.id]["torque_enable"]}
         for s in servos:
             if s.endless:
                 s.goal = 0  # a wheel starts still, whatever it did before
             else:
-                which = "goal_position" if s in holding else "present_position"
+                which = "goal_position" if s.id in holding else "present_position"
                 s.goal = self._start_goal(s, survey[s.id][which])
-        # Servos that hold on: their goal goes out only if it had to change.
-        kept = {s.id: s.goal for s in holding if s.goal is not None}
-        wheels_on = {s.id: 0 for s in holding if s.endless}
+        # Servos that hold on: a position goal goes out only if it had to change.
         moved = {
-            sid: g
-            for sid, g in kept.items()
-            if not self.servos[sid].endless and g != survey[sid]["goal_position"]
+            s.id: _pack_i32(s.goal or 0)
+            for s in servos
+            if s.id in holding and not s.endless and s.goal != survey[s.id]["goal_position"]
         }
+        still = {s.id: _pack_i32(0) for s in servos if s.id in holding and s.endless}
 
         def hold(bus: DxlBus) -> None:
-            bus.sync_write(_GOAL_POSITION.address, 4, {i: _pack_i32(g) for i, g in moved.items()})
-            still = {i: _pack_i32(v) for i, v in wheels_on.items()}
+            bus.sync_write(_GOAL_POSITION.address, 4, moved)
             bus.sync_write(_GOAL_VELOCITY.address, 4, still)
 
         await owner.call(hold)
-        for s in holding:
-            s.sent = s.goal
+        limp = []
+        for s in servos:
+            if s.id in holding:
+                s.sent = s.goal
+            else:
+                limp.append(s)
         if limp:
             await self._enable_torque(owner, limp)
         await self._arm_watchdog(owner, servos)
@@ -934,17 +931,10 @@ class BusScheduler(Actor):
         s.next_probe = self.now() + self.cfg.bus.probe_period_s
         if s.state == "degraded":  # a failed probe of a degraded servo: no new event
             return
-        self._set_state(s, "degraded")
+        s.state = "degraded"
         self.emit(ServoDegraded(t=self.now(), source=self.name, servo_id=s.id, reason=reason))
         if s.critical:
             self._lose(f"{s.name} lost: {reason}")
-
-    def _set_state(self, s: _Servo, state: State) -> None:
-        s.state = state
-        if state == "ok":
-            self.out.discard(s.id)
-        else:
-            self.out.add(s.id)
 
     def _lose(self, reason: str) -> None:
         self.lost = True
@@ -964,7 +954,7 @@ class BusScheduler(Actor):
         # Only servos with something to say: an Alert, error bits read, a standing warning.
         suspects = {sid for sid, err in errors.items() if err & ALERT}
         suspects.update(sid for sid, regs in values.items() if regs.get("hardware_error_status"))
-        suspects.update(self.warned.intersection(errors, values))
+        suspects.update(sid for sid in errors if sid in values and self.servos[sid].warning)
         for sid in sorted(suspects):
             s = self.servos[sid]
             if not s.live:
@@ -988,9 +978,7 @@ class BusScheduler(Actor):
             if bits & s.shutdown:
                 await self._reboot(owner, s, bits)
                 busy = True
-        if self.out:
-            busy = await self._poll(owner) or busy
-        return busy
+        return await self._poll(owner) or busy
 
     def _warn(self, s: _Servo, bits: int) -> None:
         """Report a change of ``s``'s non-latching error bits."""
@@ -998,10 +986,6 @@ class BusScheduler(Actor):
             return
         changed = bits if bits else s.warning
         s.warning = bits
-        if bits:
-            self.warned.add(s.id)
-        else:
-            self.warned.discard(s.id)
         self.emit(
             HardwareWarning(
                 t=self.now(),
@@ -1038,9 +1022,8 @@ class BusScheduler(Actor):
         )
         reply = await owner.call(lambda bus: bus.reboot(s.id))
         self.emit(ServoRebooted(t=self.now(), source=self.name, servo_id=s.id, ok=reply.ok))
-        self._set_state(s, "booting")
+        s.state = "booting"
         s.warning = 0
-        self.warned.discard(s.id)
         s.boot_deadline = self.now() + self.cfg.bus.boot_timeout_s
         s.next_probe = self.now() + BOOT_POLL_S
 
@@ -1051,7 +1034,7 @@ class BusScheduler(Actor):
     async def _poll(self, owner: PortOwner) -> bool:
         """Ping the booting or degraded servo whose turn has come (one per cycle at most)."""
         now = self.now()
-        waiting = [s for sid in self.out if now >= (s := self.servos[sid]).next_probe]
+        waiting = [s for s in self.servos.values() if not s.live and now >= s.next_probe]
         if not waiting:
             return False
         s = min(waiting, key=lambda x: (x.next_probe, x.id))
@@ -1097,17 +1080,18 @@ class BusScheduler(Actor):
             self._recovered(s)
             await self._detect_fast(owner, f"{s.name} recovered")
         else:
-            self._set_state(s, "ok")
+            s.state = "ok"
             s.failures = 0
 
     def _degrade_after_boot(self, s: _Servo, reason: str) -> None:
         """A reboot did not bring ``s`` back: degraded (an event unless it already was)."""
-        self._set_state(s, "degraded" if s.from_degraded else "ok")
+        if s.from_degraded:  # it was degraded already: no new event
+            s.state = "degraded"
         s.from_degraded = False
         self._degrade(s, reason)
 
     def _recovered(self, s: _Servo) -> None:
-        self._set_state(s, "ok")
+        s.state = "ok"
         s.failures = 0
         s.from_degraded = False
         self.emit(ServoRecovered(t=self.now(), source=self.name, servo_id=s.id))

@@ -169,12 +169,6 @@ class _Capture:
         self.packet = bytes(packet)
         return len(self.packet)
 
-    def readPort(self, length: int) -> bytes:  # noqa: N802
-        return b""
-
-    def getBaudRate(self) -> int:  # noqa: N802
-        return 1_000_000
-
 
 class DxlBus:
     """Every transaction whexar makes, through dynamixel-sdk's Protocol 2.0 packet handler."""

@@ -22,6 +22,7 @@ from whexar.bus.emulator.chain import ServoChain
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, N_LEGS
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
+from whexar.testing.harness import RunResult, Scenario, run_actors
 
 _WHEEL = JOINT_NAMES.index("wheel")
 
@@ -65,6 +66,19 @@ class GoalWiggle(Actor):
             if p.stop_after_cycles is not None and answered >= p.stop_after_cycles:
                 self.request_stop(f"answered {answered} cycles")
                 return
+
+
+def run_bus(
+    graph: Mapping[str, Any],
+    scenario: Scenario | None = None,
+    duration: float | None = None,
+) -> RunResult:
+    """Run a :func:`bus_graph` on virtual time; the harness feeds ``goals`` unless a
+    :class:`GoalWiggle` does."""
+    wiggling = any(a["name"] == "wiggle" for a in graph["actors"])
+    return run_actors(
+        graph, duration=duration, scenario=scenario, feeds=[] if wiggling else ["goals"]
+    )
 
 
 def servo_chain(cfg: RobotConfig | None = None, **options: Any) -> ServoChain:
