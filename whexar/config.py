@@ -676,6 +676,108 @@ def _default_stances() -> dict[str, StanceSpec]:
     }
 
 
+# --------------------------------------------------------------------------- locomotion
+
+Trajectory = Literal["parabola", "half_sine", "hopf", "van_der_pol", "rayleigh", "stick_slip"]
+"""Swing shapes: Diosdado 2014, 3.3–3.4, and the CPG orbits of Grzelczyk et al., 8.4."""
+ContactSource = Literal["auto", "fsr", "current", "none"]
+
+
+class LocomotionSpec(Section):
+    """The coordinator's and the leg actors' settings (4.2.5, 4.2.6, 5.4, 6.3–6.6).
+
+    Speeds follow from steps: a gait covers one step length per stance, so
+    v = L / (β·T) for step length L, duty factor β and cycle time T. The
+    coordinator keeps every swing at least ``min_swing_s`` long, T at most
+    ``max_cycle_s`` and L within ``max_step_length_mm``; a faster command is
+    clamped with an event.
+    """
+
+    stance: str = "default"
+    """Stance at start (a ``[stances]`` preset); the walking stance of 6.4."""
+    ride_stance: str = "basic"
+    """Stance for riding: every leg square to the body, so the wheels sit symmetric."""
+    gait: Literal["tripod", "tetrapod", "ripple", "wave"] = "tripod"
+    hybrid_gait: Literal["tripod", "tetrapod", "ripple", "wave"] = "ripple"
+    """The gait stepping while the wheels drive; ripple for its stability (6.6)."""
+    trajectory: Trajectory = "parabola"
+    min_swing_s: Positive = 0.4
+    """Shortest swing: the tripod gait's cycle then lasts 0.8 s, half the 1.6 s of 6.8.1."""
+    max_cycle_s: Positive = 6.0
+    """Longest gait cycle; slower commands take shorter steps instead."""
+    step_length_mm: Positive = 100.0
+    """Preferred step. The cycle follows the speed, T = L / (β·v): the tripod gait at
+    0.125 m/s steps every 1.6 s, as in 6.8.1 (0.07–0.12 m/s, 1.6 s)."""
+    max_step_length_mm: Positive = 140.0
+    """Longest step the workspace of every stance preset allows with margin."""
+    step_height_mm: Positive = 60.0
+    max_step_height_mm: Positive = 120.0
+    """Table 5.9: tetrapod steps over 120 mm; the swing apex may not exceed it."""
+    max_accel_m_s2: Positive = 0.25
+    """Body acceleration limit while walking or riding; velocity changes ramp."""
+    max_yaw_accel_deg_s2: Positive = 60.0
+    ride_max_speed_m_s: Positive = 0.2
+    """Top riding speed measured in 6.5.1."""
+    min_turn_radius_mm: Positive = 400.0
+    """A circle about a point inside the body (half its length, 300 mm) is refused."""
+    hybrid_wheel_share: float = Field(default=0.5, gt=0, lt=1)
+    """Share of the hybrid gait's speed the wheels make; the legs step the rest (6.6)."""
+    min_stability_margin_mm: Positive = 30.0
+    """No leg lifts when the static margin of the remaining feet would fall below this."""
+    trochanter_follows_pitch: bool = True
+    """Turn the trochanters with the body pitch (eq. 4.18)."""
+    transition_s: Positive = 1.0
+    """Duration of a stance change, a leg re-placement, a body pose change."""
+    stand_up_s: Positive = 2.0
+    sit_height_mm: Positive = 80.0
+    """Coxa joints above the ground when seated: the 60 mm body resting on the ground."""
+    sit_down_s: Positive = 1.5
+    flip_s: Positive = 2.0
+    """Time to turn the legs 180° about their trochanters (6.8.1)."""
+    align_tolerance_deg: Positive = 3.0
+    """Direction servos within this of their heading before the wheels turn."""
+    align_timeout_s: Positive = 1.5
+    wheel_stop_speed_m_s: Positive = 0.005
+    """A wheel slower than this counts as stopped before its leg lifts."""
+    contact: ContactSource = "auto"
+    """Foot contact: the force sensor when frames arrive (auto), always it, the femur
+    current (6.7.3), or none (no adaptive swing)."""
+    contact_current_a: Positive = 0.8
+    """|femur current| above this means the foot carries load (6.7.3)."""
+    reflex_hold_s: Positive = 0.3
+    """A reflex goal keeps its joint this long after it was sent."""
+    reflex_blend_s: Positive = 0.3
+    """Then the leg blends back from the reflex's pose to its own in this time."""
+
+    def problems(self, at: str) -> list[Problem]:
+        found: list[Problem] = []
+        if self.min_swing_s >= self.max_cycle_s:
+            found.append(
+                Problem(
+                    f"{at}.min_swing_s",
+                    self.min_swing_s,
+                    f"below max_cycle_s ({self.max_cycle_s:g})",
+                )
+            )
+        if self.step_length_mm > self.max_step_length_mm:
+            found.append(
+                Problem(
+                    f"{at}.step_length_mm",
+                    self.step_length_mm,
+                    f"at most max_step_length_mm ({self.max_step_length_mm:g})",
+                )
+            )
+        if self.step_height_mm > self.max_step_height_mm:
+            found.append(
+                Problem(
+                    f"{at}.step_height_mm",
+                    self.step_height_mm,
+                    f"at most max_step_height_mm ({self.max_step_height_mm:g})",
+                )
+            )
+        return found
+
+
 # --------------------------------------------------------------------------- the whole robot
 
 
@@ -698,6 +800,7 @@ class RobotConfig(CheckedSection):
     imu: ImuSpec = ImuSpec()
     gait_selector: GaitSelectorSpec = GaitSelectorSpec()
     stances: dict[str, StanceSpec] = Field(default_factory=_default_stances)
+    locomotion: LocomotionSpec = LocomotionSpec()
 
     def problems(self, at: str = "") -> list[Problem]:
         """Every relational problem of the whole configuration."""
@@ -814,7 +917,24 @@ def _check_stances(cfg: RobotConfig) -> list[Problem]:
     return found
 
 
+def _check_locomotion_stances(cfg: RobotConfig) -> list[Problem]:
+    found: list[Problem] = []
+    allowed = ", ".join(sorted(cfg.stances))
+    for key in ("stance", "ride_stance"):
+        name = getattr(cfg.locomotion, key)
+        if name not in cfg.stances:
+            found.append(Problem(f"locomotion.{key}", name, f"a stance preset: {allowed}"))
+    sit = cfg.locomotion.sit_height_mm
+    if any(sit >= s.height_mm for s in cfg.stances.values()):
+        low = min(s.height_mm for s in cfg.stances.values())
+        found.append(
+            Problem("locomotion.sit_height_mm", sit, f"below every stance height ({low:g})")
+        )
+    return found
+
+
 _CROSS_CHECKS: Final[tuple[Callable[[RobotConfig], list[Problem]], ...]] = (
+    _check_locomotion_stances,
     _check_dh_lengths,
     _check_servo_models,
     _check_stances,

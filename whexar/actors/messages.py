@@ -418,3 +418,212 @@ class AccelPlausible(Event):
     seq: int | None
     magnitude_g: float
     withheld: int
+
+
+# --------------------------------------------------------------------------- locomotion
+# The coordinator and the six leg actors (whexar.actors.coordinator, whexar.actors.leg).
+# Points are in the body frame (x forward, y left, z up; metres) unless a name says
+# otherwise; legs are indices 0…5 in LEG_NAMES order.
+
+Vec3 = tuple[float, float, float]
+
+
+@message
+class MotionCommand(Message):
+    """What the robot should do next; a field left ``None`` keeps its present value.
+
+    One typed path for every front end: command scripts, stdin, the keyboard,
+    scenarios and tests all send these to the coordinator.
+
+    * ``vx_m_s``, ``vy_m_s``, ``yaw_rate_rad_s``: body velocity (forward, left, turn
+      rate counter-clockwise); ``turn_radius_m`` instead of a yaw rate drives along a
+      circle about (0, R) (R > 0: a left turn), the yaw rate following the speed;
+    * ``gait``: tripod, tetrapod, ripple, wave; ``mode``: walk, ride, hybrid;
+    * ``stance``: a preset of ``[stances]``; ``step_height_m``, ``step_length_m``;
+    * ``body_height_m`` (coxa joints above the ground), ``roll_rad``, ``pitch_rad``:
+      the body pose over the feet;
+    * ``upside_down``: the robot lies on its back (True) or on its feet; a change
+      turns every leg 180° about its trochanter (6.8.1);
+    * ``stop``: velocity to zero and every foot down in the stance.
+    """
+
+    vx_m_s: float | None = None
+    vy_m_s: float | None = None
+    yaw_rate_rad_s: float | None = None
+    turn_radius_m: float | None = None
+    gait: str | None = None
+    mode: str | None = None
+    stance: str | None = None
+    step_height_m: float | None = None
+    step_length_m: float | None = None
+    body_height_m: float | None = None
+    roll_rad: float | None = None
+    pitch_rad: float | None = None
+    upside_down: bool | None = None
+    stop: bool = False
+
+
+@message
+class BodyMotion(Message):
+    """The coordinator's set-points for this control cycle, read by every leg.
+
+    ``twist`` (vx, vy, ω) is the body's velocity over the ground in the body frame,
+    already limited and ramped: a stance foot moves by −(v + ω ẑ × p). ``pose`` is
+    (x, y, z, roll, pitch, yaw) of the body relative to its neutral frame
+    (:class:`~whexar.kinematics.body.BodyPose`); ``trochanter_rad`` the angle every
+    trochanter holds (the body pitch of eq. 4.18, or −π when the legs are flipped);
+    ``upside_down`` says the legs work flipped (6.8.1).
+
+    The wheels: with ``steer`` each leg turns its wheel to ``wheel_heading_rad``
+    (upright frame, 0 = straight ahead; the leg subtracts its coxa angle, 5.1) and
+    drives it at ``wheel_speed_m_s`` (ground speed of the contact, signed), both in
+    leg order; a leg whose foot is in the air stops its wheel whatever they say.
+    Without ``steer`` the direction joints stand at 0 and the wheels are held.
+    """
+
+    cycle: int
+    twist: Vec3
+    pose: tuple[float, float, float, float, float, float]
+    trochanter_rad: float
+    upside_down: bool
+    steer: bool = False
+    wheel_heading_rad: tuple[float, ...] = (0.0,) * 6
+    wheel_speed_m_s: tuple[float, ...] = (0.0,) * 6
+
+
+@message
+class StepCommand(Message):
+    """The coordinator's order to one leg, valid from ``start_t`` for ``duration_s``.
+
+    ``kind``:
+
+    * ``"swing"``: lift the foot from where it is and put it down at ``target``,
+      ``height_m`` above the ground at the highest, along ``trajectory`` (parabola,
+      half_sine, or a CPG orbit: hopf, van_der_pol, rayleigh, stick_slip), which a
+      ``duty_factor`` gait cycle re-times; the wheel stops first. Touching the
+      ground early ends the swing there (adaptive swing);
+    * ``"stance"``: keep the foot on the ground and let the body carry it
+      (:class:`BodyMotion`'s twist) until ``start_t + duration_s``;
+    * ``"move"``: move the foot to ``target`` in ``duration_s`` on a minimum-jerk
+      path, lifted by ``height_m`` on the way (0: slide, for body height changes);
+    * ``"hold"``: keep the foot where it is.
+
+    The wheels take their orders from :class:`BodyMotion`, every cycle.
+    """
+
+    leg: int
+    kind: str
+    start_t: float
+    duration_s: float
+    target: Vec3
+    height_m: float = 0.0
+    trajectory: str = "parabola"
+    duty_factor: float = 0.5
+
+
+@message
+class LegState(Message):
+    """What a leg did in control cycle ``cycle``: its phase, foot and contact.
+
+    ``phase`` is the kind of the step it executes (swing, stance, move, hold,
+    reflex); ``progress`` how far through it (0…1). ``foot`` is the commanded foot
+    point and ``measured_foot`` the point the servos' present angles give (FK),
+    both in the body frame, ``None`` before the first reading. ``contact`` comes
+    from the force sensor when the leg has one, else from the femur current
+    (thesis 6.7.3); ``contact_source`` says which ("fsr", "current", "none").
+    ``load`` is the eq. 5.19 indicator F = I / (L·sin α) of the femur and tibia
+    segments (A/m), ``None`` where a reading is missing or the next joint is
+    nearly straight. ``ik_ok`` is False while the leg holds its last good pose
+    because the IK failed.
+    """
+
+    leg: int
+    cycle: int
+    phase: str
+    progress: float
+    foot: Vec3
+    measured_foot: Vec3 | None
+    contact: bool
+    contact_source: str
+    load: tuple[float | None, float | None]
+    ik_ok: bool = True
+
+
+@message
+class LocomotionState(Message):
+    """The coordinator's state, once per control cycle: what it does and why.
+
+    ``activity``: standing_up, standing, walking, riding, hybrid, transition,
+    flipping, sitting_down, seated. ``twist`` is the body velocity it commands,
+    ``gait_phase`` the phase of the gait cycle (0…1), ``swing_legs`` the legs in
+    swing, ``margin_m`` the static stability margin of the commanded support feet.
+    """
+
+    activity: str
+    mode: str
+    gait: str
+    stance: str
+    twist: Vec3
+    gait_phase: float
+    swing_legs: tuple[int, ...]
+    margin_m: float
+    upside_down: bool
+
+
+@message
+class SwingEnded(Event):
+    """Leg ``leg``'s swing ended (``outcome``: completed, early_contact, blocked,
+    no_contact) with its foot ``ground_offset_m`` above (+) or below (−) where the
+    ground was expected; a later stance continues from that height."""
+
+    leg: int
+    outcome: str
+    ground_offset_m: float
+
+
+@message
+class IkFailed(Event):
+    """Leg ``leg`` could not reach ``target`` (body frame): it holds its last good pose."""
+
+    leg: int
+    target: Vec3
+    reason: str
+
+
+@message
+class CommandClamped(Event):
+    """A command asked for more than the robot can do: ``field`` was limited from
+    ``requested`` to ``applied`` (``reason`` says by what)."""
+
+    field: str
+    requested: float
+    applied: float
+    reason: str
+
+
+@message
+class CommandRefused(Event):
+    """A command that cannot be carried out was dropped (``reason``); nothing of it applies."""
+
+    command: str
+    reason: str
+
+
+@message
+class SwingDelayed(Event):
+    """Lifting ``legs`` now would leave a stability margin of ``margin_m`` below
+    ``minimum_m``: the gait waits with every foot down."""
+
+    legs: tuple[int, ...]
+    margin_m: float
+    minimum_m: float
+
+
+@message
+class LocomotionChanged(Event):
+    """The coordinator changed what it does: ``what`` (activity, gait, mode, stance,
+    upside_down) from ``before`` to ``after``."""
+
+    what: str
+    before: str
+    after: str
