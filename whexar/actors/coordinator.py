@@ -70,8 +70,11 @@ from whexar.actors.messages import (
     Vec3,
 )
 from whexar.config import ConfigFile, RobotConfig, load_config
+from whexar.errors import KinematicsError
 from whexar.kinematics.body import Stance, leg_to_body, stance_feet
 from whexar.kinematics.gait import GAITS, TRIPOD, Gait
+from whexar.kinematics.geometry import LegGeometry
+from whexar.kinematics.leg import ik
 from whexar.kinematics.stability import static_stability_margin
 from whexar.kinematics.wheels import wheel_twist
 from whexar.robot import LEG_NAMES, N_LEGS
@@ -113,6 +116,23 @@ class _Want:
     pitch: float = 0.0
     upside_down: bool = False
     stop: bool = False
+
+
+def workspace_step(stance: Stance, geometry: LegGeometry, longest: float, height: float) -> float:
+    """The longest step, at most ``longest``, every leg of ``stance`` can take in any
+    direction with its foot ``height`` up at mid-swing (IK within the joint limits)."""
+    feet = stance_feet(stance)  # leg frames: x outward, y down, z forward
+    length = longest
+    while length > 0.01:
+        half = length / 2
+        offsets = [(half, 0, 0), (-half, 0, 0), (0, 0, half), (0, 0, -half), (0, -height, 0)]
+        points = np.array([f + np.array(o) for f in feet for o in offsets])
+        try:
+            ik(points, geometry, target="contact")
+            return length
+        except KinematicsError:
+            length -= 0.005
+    return 0.01
 
 
 def _ramp(value: float, target: float, step: float) -> float:
@@ -187,6 +207,7 @@ class Coordinator(Actor):
         self._pending_duration = 0.0
         self._clamp_said = False
         self.phase_running = False
+        self._workspace: dict[tuple[str, bool], float] = {}
 
     def _stance(self, name: str) -> Stance:
         return self.cfg.stance(name)
@@ -337,7 +358,20 @@ class Coordinator(Actor):
         """(shortest cycle, fastest foot speed over the ground) of ``gait``."""
         beta = gait.duty_factor
         t_min = self.loco.min_swing_s / (1.0 - beta)
-        return t_min, (self.loco.max_step_length_mm / 1000) / (beta * t_min)
+        return t_min, self._max_step() / (beta * t_min)
+
+    def _max_step(self) -> float:
+        """The longest step the present stance's workspace allows (cached per stance)."""
+        key = (self.stance_name, self.upside_down)
+        found = self._workspace.get(key)
+        if found is None:
+            found = self._workspace[key] = workspace_step(
+                self.cfg.stance(self.stance_name),
+                self.geometry,
+                self.loco.max_step_length_mm / 1000,
+                self.loco.max_step_height_mm / 1000,
+            )
+        return found
 
     def _foot_speeds(self, twist: tuple[float, float, float]) -> list[float]:
         vx, vy, w = twist
@@ -602,9 +636,8 @@ class Coordinator(Actor):
         fastest = max(self._foot_speeds(legs_target))
         t_min, _ = self._gait_limits(self.gait)
         if fastest > STILL:
-            self.cycle_s = min(
-                max(self.want.step_length / (beta * fastest), t_min), loco.max_cycle_s
-            )
+            step = min(self.want.step_length, self._max_step())
+            self.cycle_s = min(max(step / (beta * fastest), t_min), loco.max_cycle_s)
         moving = fastest > STILL or any(abs(v) > STILL for v in self.leg_twist)
         # A swing ending within this cycle counts as down: the tripod's groups hand over
         # at one phase, and the bus cycle is the resolution of "at once".
