@@ -6,10 +6,15 @@
   of the servo bus;
 * :mod:`~whexar.actors.sensors` — :class:`~whexar.actors.sensors.SensorReader`, the
   sensor board's serial line;
-* :mod:`~whexar.actors.imu` — :class:`~whexar.actors.imu.ImuReader`, the LSM9DS1 on I²C.
+* :mod:`~whexar.actors.imu` — :class:`~whexar.actors.imu.ImuReader`, the LSM9DS1 on I²C;
+* :mod:`~whexar.actors.leg` — :class:`~whexar.actors.leg.LegActor`, one per leg: steps,
+  IK, wheel, contact, reflex overrides;
+* :mod:`~whexar.actors.coordinator` — :class:`~whexar.actors.coordinator.Coordinator`:
+  gaits, riding, the hybrid gait, stances, the leg flip;
+* :mod:`~whexar.actors.commands` — :class:`~whexar.actors.commands.CommandSource`:
+  command scripts, stdin and the keyboard.
 
-The leg actors, the coordinator, the reflexes, the terrain estimator and the
-recorder join them. The runtime they run on (actors, ports, channels,
+The reflexes, the terrain estimator and the recorder join them. The runtime they run on (actors, ports, channels,
 clock, wiring, supervision) is :mod:`whexar.runtime`.
 
 May import: :mod:`whexar.config`, the device links (:mod:`whexar.bus`,

@@ -2,42 +2,211 @@
 
 One line per event; a failure (``ActorFailed``) is followed by its traceback,
 indented under it.
+
+The wiring file can be changed for one run without editing it:
+``--set ACTOR.PARAM=VALUE`` overrides a parameter of one actor before the
+graph is built and checked (VALUE is read as a TOML value — ``3``, ``true``,
+``"x"`` — or else taken as a plain string). ``--commands FILE`` and
+``--keyboard`` are short for ``--set commands.source=FILE`` and
+``--set commands.source=keyboard``: the graph's actor named ``commands`` (a
+:class:`~whexar.actors.commands.CommandSource`) then plays a command script or
+reads the keyboard. While the keyboard's status line is on the terminal, each
+event line first clears it; the actor redraws it at its next update.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import sys
 import textwrap
+import tomllib
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from whexar.cli.common import Commands, seconds
+from whexar.errors import ConfigError, Problem, UsageError
 from whexar.runtime.messages import ActorFailed, Message
 from whexar.runtime.wiring import EVENTS_CHANNEL
+
+if TYPE_CHECKING:
+    from whexar.runtime.channels import Observer
+    from whexar.runtime.wiring import Graph
+
+COMMANDS_ACTOR = "commands"
+"""The actor ``--commands`` and ``--keyboard`` set the ``source`` of."""
 
 _BELOW = " " * 12
 """Indent of what follows an event line (a traceback), under the event's name."""
 
+CLEAR_LINE = "\r\x1b[K"
+"""Carriage return and erase to the end of the line: clears the keyboard's status line."""
 
-def _event_line(channel: str, msg: Message) -> None:
-    if channel != EVENTS_CHANNEL:
-        return
-    fields = ", ".join(
-        f"{name}={getattr(msg, name)!r}"
-        for name in msg.__dataclass_fields__
-        if name not in ("t", "source", "traceback")
+
+def _event_printer(prefix: str = "") -> Observer:
+    """An observer printing each runtime event as one line, each line starting with ``prefix``."""
+
+    def print_event(channel: str, msg: Message) -> None:
+        if channel != EVENTS_CHANNEL:
+            return
+        fields = ", ".join(
+            f"{name}={getattr(msg, name)!r}"
+            for name in msg.__dataclass_fields__
+            if name not in ("t", "source", "traceback")
+        )
+        # The runtime calls this inside its own bookkeeping (a stop request too): a
+        # terminal that went away must cost the event line, not the stop.
+        with contextlib.suppress(OSError):
+            print(f"{prefix}{msg.t:10.3f}  {type(msg).__name__:<15} {fields}", flush=True)
+            if isinstance(msg, ActorFailed) and msg.traceback:
+                print(prefix + textwrap.indent(msg.traceback.rstrip("\n"), _BELOW), flush=True)
+
+    return print_event
+
+
+# --------------------------------------------------------------------------- overrides
+
+
+def assignment(value: str) -> tuple[str, object]:
+    """An argument type: ``ACTOR.PARAM=VALUE`` → (``ACTOR.PARAM``, VALUE read as TOML)."""
+    target, sep, text = value.partition("=")
+    target = target.strip()
+    if not sep or "." not in target or target.startswith(".") or target.endswith("."):
+        raise argparse.ArgumentTypeError(f"{value!r}: expected ACTOR.PARAM=VALUE")
+    return target, toml_value(text)
+
+
+def toml_value(text: str) -> object:
+    """``text`` read as a TOML value (``3``, ``0.5``, ``true``, ``"x"``, ``[1, 2]``), else itself.
+
+    So ``port=/dev/ttyUSB0`` needs no quotes, and ``name="3"`` is the string.
+    """
+    try:
+        return tomllib.loads(f"value = {text}")["value"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _actor_names(data: dict[str, Any]) -> list[str]:
+    actors = data.get("actors")
+    if not isinstance(actors, list):
+        return []
+    return [a["name"] for a in actors if isinstance(a, dict) and isinstance(a.get("name"), str)]
+
+
+def apply_override(
+    data: dict[str, Any], target: str, value: object, *, source: str, option: str = "--set"
+) -> None:
+    """Set parameter ``target`` (``ACTOR.PARAM``, or ``ACTOR.TABLE.KEY``) of a wiring document.
+
+    The actor is the longest actor name of the graph that ``target`` starts
+    with (names may hold dots). An unknown actor is a
+    :class:`~whexar.errors.ConfigError` listing the graph's actors.
+    """
+    names = _actor_names(data)
+    actor = max(
+        (n for n in names if target.startswith(f"{n}.") and len(target) > len(n) + 1),
+        key=len,
+        default=None,
     )
-    print(f"{msg.t:10.3f}  {type(msg).__name__:<15} {fields}", flush=True)
-    if isinstance(msg, ActorFailed) and msg.traceback:
-        print(textwrap.indent(msg.traceback.rstrip("\n"), _BELOW), flush=True)
+    if actor is None:
+        known = ", ".join(names) or "none"
+        raise ConfigError(
+            source,
+            [
+                Problem(
+                    option, target, f"ACTOR.PARAM with an actor of the graph; its actors: {known}"
+                )
+            ],
+        )
+    *tables, key = target[len(actor) + 1 :].split(".")
+    for entry in data["actors"]:
+        if not (isinstance(entry, dict) and entry.get("name") == actor):
+            continue
+        table: object = entry.setdefault("params", {})
+        walked = f"actors.{actor}.params"
+        for name in (*tables, None):
+            if not isinstance(table, dict):
+                raise ConfigError(
+                    source,
+                    [Problem(option, target, f"a key inside a table; {walked} is not a table")],
+                )
+            if name is None:
+                table[key] = value
+            else:
+                table = table.setdefault(name, {})
+                walked += f".{name}"
+
+
+def _overrides(args: argparse.Namespace) -> list[tuple[str, object, str]]:
+    """Every override the options ask for, in order: (target, value, option)."""
+    found = [(target, value, "--set") for target, value in args.set]
+    if args.commands is not None:
+        path: Path = args.commands
+        if not path.is_file():
+            raise ConfigError(
+                str(path), [Problem("--commands", str(path), "an existing command script file")]
+            )
+        found.append((f"{COMMANDS_ACTOR}.source", str(path), "--commands"))
+    if args.keyboard:
+        found.append((f"{COMMANDS_ACTOR}.source", "keyboard", "--keyboard"))
+    return found
+
+
+def _stdin_is_a_terminal() -> bool:
+    try:
+        return sys.stdin is not None and sys.stdin.isatty()
+    except (AttributeError, OSError, ValueError):
+        return False
+
+
+def load_run_graph(args: argparse.Namespace) -> Graph:
+    """The wiring file of ``args.graph`` with the options' overrides, built and checked."""
+    from whexar.runtime.schema import read_toml
+    from whexar.runtime.wiring import build_graph, load_graph
+
+    if args.keyboard and args.virtual:
+        raise UsageError(
+            "--keyboard reads a person's keys in real time; it cannot run with --virtual "
+            "(give --commands FILE for a run on virtual time)"
+        )
+    if args.keyboard and not _stdin_is_a_terminal():
+        raise UsageError("--keyboard needs a terminal on stdin; pipe commands with stdin instead")
+    overrides = _overrides(args)
+    if not overrides:
+        return load_graph(args.graph)
+    source = str(args.graph)
+    data = read_toml(args.graph)
+    names = _actor_names(data)
+    if (args.commands is not None or args.keyboard) and COMMANDS_ACTOR not in names:
+        option = "--keyboard" if args.keyboard else "--commands"
+        raise ConfigError(
+            source,
+            [
+                Problem(
+                    option,
+                    COMMANDS_ACTOR,
+                    f"a graph with an actor named {COMMANDS_ACTOR!r} "
+                    f"(whexar.actors.commands:CommandSource); its actors: "
+                    f"{', '.join(names) or 'none'}",
+                )
+            ],
+        )
+    for target, value, option in overrides:
+        apply_override(data, target, value, source=source, option=option)
+    return build_graph(data, source=source)
+
+
+# --------------------------------------------------------------------------- the command
 
 
 def _run(args: argparse.Namespace) -> int:
     from whexar.runtime.clock import run as run_loop
     from whexar.runtime.supervisor import Runtime
-    from whexar.runtime.wiring import load_graph
 
-    graph = load_graph(args.graph)
-    runtime = Runtime(graph, handle_signals=True, observer=None if args.quiet else _event_line)
+    graph = load_run_graph(args)
+    observer = None if args.quiet else _event_printer(CLEAR_LINE if args.keyboard else "")
+    runtime = Runtime(graph, handle_signals=True, observer=observer)
 
     async def main() -> int:
         return await runtime.run(duration=args.duration)
@@ -77,4 +246,28 @@ def add_commands(commands: Commands) -> None:
         help="run on virtual time (idle time is skipped); give --duration",
     )
     run_cmd.add_argument("--quiet", action="store_true", help="do not print runtime events")
+    run_cmd.add_argument(
+        "--set",
+        type=assignment,
+        action="append",
+        default=[],
+        metavar="ACTOR.PARAM=VALUE",
+        help="override a parameter of one actor of the wiring file (repeatable); VALUE is "
+        'read as TOML (3, true, "x") or else taken as a string',
+    )
+    source = run_cmd.add_mutually_exclusive_group()
+    source.add_argument(
+        "--commands",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="play this command script (JSON lines with a time t each): "
+        f"--set {COMMANDS_ACTOR}.source=FILE",
+    )
+    source.add_argument(
+        "--keyboard",
+        action="store_true",
+        help="drive from the keyboard (arrows/WASD, space stops, x quits; real time only): "
+        f"--set {COMMANDS_ACTOR}.source=keyboard",
+    )
     run_cmd.set_defaults(handler=_run)
