@@ -14,8 +14,9 @@
 * :mod:`~whexar.actors.commands` — :class:`~whexar.actors.commands.CommandSource`:
   command scripts, stdin and the keyboard.
 
-The reflexes, the terrain estimator and the recorder join them. The runtime they run on (actors, ports, channels,
-clock, wiring, supervision) is :mod:`whexar.runtime`.
+The reflexes, the terrain estimator and the recorder join them. The runtime
+they run on (actors, ports, channels, clock, wiring, supervision) is
+:mod:`whexar.runtime`.
 
 May import: :mod:`whexar.config`, the device links (:mod:`whexar.bus`,
 :mod:`whexar.sensors`), :mod:`whexar.kinematics`, :mod:`whexar.robot`,
