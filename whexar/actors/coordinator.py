@@ -75,7 +75,6 @@ from whexar.kinematics.body import Stance, leg_to_body, stance_feet
 from whexar.kinematics.gait import GAITS, TRIPOD, Gait
 from whexar.kinematics.geometry import LegGeometry
 from whexar.kinematics.leg import ik
-from whexar.kinematics.stability import static_stability_margin
 from whexar.kinematics.wheels import wheel_twist
 from whexar.robot import LEG_NAMES, N_LEGS
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
@@ -133,6 +132,43 @@ def workspace_step(stance: Stance, geometry: LegGeometry, longest: float, height
         except KinematicsError:
             length -= 0.005
     return 0.01
+
+
+def support_margin(points: list[tuple[float, float]], cog: tuple[float, float]) -> float:
+    """Signed static stability margin (m), as
+    :func:`~whexar.kinematics.stability.static_stability_margin` computes it, in plain Python:
+    the coordinator asks every cycle, for at most six points, where numpy's call overhead is
+    most of the cost. Fewer than three supports: −∞."""
+    if len(points) < 3:
+        return -math.inf
+    pts = sorted(set(points))
+
+    def cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list[tuple[float, float]] = []
+    for q in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0:
+            lower.pop()
+        lower.append(q)
+    upper: list[tuple[float, float]] = []
+    for q in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0:
+            upper.pop()
+        upper.append(q)
+    hull = lower[:-1] + upper[:-1]  # counter-clockwise
+    cx, cy = cog
+    best = math.inf
+    inside = len(hull) >= 3
+    for k, (ax, ay) in enumerate(hull):
+        bx, by = hull[(k + 1) % len(hull)]
+        ex, ey = bx - ax, by - ay
+        length2 = ex * ex + ey * ey
+        u = 0.0 if length2 == 0 else min(max(((cx - ax) * ex + (cy - ay) * ey) / length2, 0.0), 1.0)
+        best = min(best, math.hypot(cx - ax - u * ex, cy - ay - u * ey))
+        if ex * (cy - ay) - ey * (cx - ax) < 0.0:
+            inside = False
+    return best if inside else -best
 
 
 def _ramp(value: float, target: float, step: float) -> float:
@@ -461,10 +497,7 @@ class Coordinator(Actor):
 
     def _margin(self, down: list[int]) -> float:
         points = [self.feet[i] or self.neutral_points[i] for i in down]
-        if len(points) < 3:
-            return -math.inf
-        cog = (self.pose_now[0], self.pose_now[1])
-        return static_stability_margin(np.array([(p[0], p[1]) for p in points]), cog)
+        return support_margin([(p[0], p[1]) for p in points], (self.pose_now[0], self.pose_now[1]))
 
     def _set_activity(self, activity: str) -> None:
         if activity != self.activity:
