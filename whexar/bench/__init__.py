@@ -1,7 +1,7 @@
 """Benchmarks behind ``whexar bench …``: speed targets are measured here, not in tests.
 
 One module per suite (:mod:`~whexar.bench.kin`, :mod:`~whexar.bench.runtime`,
-:mod:`~whexar.bench.bus`, :mod:`~whexar.bench.sensors`), each with a
+:mod:`~whexar.bench.bus`, :mod:`~whexar.bench.sensors`, :mod:`~whexar.bench.cycle`), each with a
 ``run(progress) -> Report``. These are the only modules besides the clock
 that read the wall clock.
 
