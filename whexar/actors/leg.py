@@ -338,7 +338,7 @@ class LegActor(Actor):
         if motion.upside_down != self.upside_down and self.flip is None:
             self.flip = (
                 motion.t,
-                self.trochanter,
+                FLIPPED_TROCHANTER if self.upside_down else self.trochanter,
                 FLIPPED_TROCHANTER if motion.upside_down else 0.0,
             )
             self.flip_to = motion.upside_down
@@ -653,10 +653,13 @@ class LegActor(Actor):
         await self.goals.send(self._goals(t, angles, airborne))
         if self.state.connected:
             measured = None
-            if all(m is not None for m in self.measured[:_POSITIONING]):
-                q = planar_fk(
-                    [m for m in self.measured[:_POSITIONING] if m is not None], self.geometry
-                )
+            # A plan that does not read the trochanter (the default) leaves its goal.
+            seen = [
+                troch if j == 1 and m is None else m
+                for j, m in enumerate(self.measured[:_POSITIONING])
+            ]
+            if all(m is not None for m in seen):
+                q = planar_fk([m for m in seen if m is not None], self.geometry)
                 if self.upside_down:
                     q = (q[0], -q[1], q[2])
                 measured = self._from_leg(q)
