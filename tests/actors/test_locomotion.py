@@ -19,9 +19,10 @@ progress.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from collections import defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -192,7 +193,8 @@ def steady(states: Sequence[LocomotionState], activity: str, twist: Sequence[flo
     return [
         s.t
         for s in states
-        if s.activity == activity and all(abs(a - b) < 1e-12 for a, b in zip(s.twist, twist))
+        if s.activity == activity
+        and all(abs(a - b) < 1e-12 for a, b in zip(s.twist, twist, strict=False))
     ]
 
 
@@ -204,7 +206,7 @@ def previous(states: Sequence[LocomotionState], t: float) -> float:
 
 def whole_cycles(states: Sequence[LocomotionState]) -> tuple[float, float, int]:
     """(start, end, n): the span of the first to the last gait-phase wrap among ``states``."""
-    wraps = [b.t for a, b in zip(states, states[1:]) if b.gait_phase < a.gait_phase]
+    wraps = [b.t for a, b in itertools.pairwise(states) if b.gait_phase < a.gait_phase]
     assert len(wraps) >= 3, f"fewer than two whole gait cycles in steady walking: {wraps}"
     return wraps[0], wraps[-1], len(wraps) - 1
 
@@ -389,7 +391,7 @@ def test_gait_swing_legs_follow_the_phase_table(name: str) -> None:
     rate = np.median(
         [
             (b.gait_phase - a.gait_phase) / (b.t - a.t)
-            for a, b in zip(window, window[1:])
+            for a, b in itertools.pairwise(window)
             if b.gait_phase > a.gait_phase
         ]
     )
@@ -421,7 +423,7 @@ def test_gait_duty_factor(name: str) -> None:
     legs = leg_states(r)
     cycle_times = sorted(t for t in legs if start <= t <= end)
     air = np.zeros(N_LEGS)
-    for a, b in zip(cycle_times, cycle_times[1:]):
+    for a, b in itertools.pairwise(cycle_times):
         for leg, state in legs[a].items():
             if airborne(state, None):
                 air[leg] += b - a
@@ -432,7 +434,7 @@ def test_gait_duty_factor(name: str) -> None:
 # --------------------------------------------------------------------------- 2. stability
 
 
-MARGIN_RUNS = {
+MARGIN_RUNS: dict[str, Callable[[], RunResult]] = {
     "tripod": lambda: gait_walk("tripod"),
     "tetrapod": lambda: gait_walk("tetrapod"),
     "ripple": lambda: gait_walk("ripple"),
@@ -484,7 +486,7 @@ def test_ride_wheels_follow_the_equations(name: str) -> None:
     states = r.log.messages("locomotion", of=LocomotionState)
     times = steady(states, "riding", RIDES[name])
     # The legs act on the BodyMotion of the cycle before (they run beside the coordinator).
-    times = [b for a, b in zip(times, times[1:]) if a == previous(states, b)]
+    times = [b for a, b in itertools.pairwise(times) if a == previous(states, b)]
     assert len(times) > 50
     motions = {m.t: m for m in r.log.messages("motion", of=BodyMotion)}
     goals = leg_goals(r)
@@ -530,10 +532,14 @@ def test_ride_changes_headings_only_at_zero_speed() -> None:
     riding = {s.t for s in r.log.messages("locomotion", of=LocomotionState) if s.mode == "ride"}
     motions = [m for m in r.log.messages("motion", of=BodyMotion) if m.steer and m.t in riding]
     turned = 0
-    for a, b in zip(motions, motions[1:]):
-        if max(abs(x - y) for x, y in zip(a.wheel_heading_rad, b.wheel_heading_rad)) > 1e-9:
+    for a, b in itertools.pairwise(motions):
+        if (
+            max(abs(x - y) for x, y in zip(a.wheel_heading_rad, b.wheel_heading_rad, strict=False))
+            > 1e-9
+        ):
             turned += 1
-            assert not any(a.wheel_speed_m_s) and not any(b.wheel_speed_m_s), b.t
+            assert not any(a.wheel_speed_m_s), b.t
+            assert not any(b.wheel_speed_m_s), b.t
     assert turned >= 3
 
 
@@ -544,7 +550,7 @@ def test_stance_changes_at_rest() -> None:
     r = stances_at_rest()
     assert r.exit_code == 0
     assert faults(r) == []
-    assert changes(r, "stance") == list(zip(("default", *STANCES), STANCES))
+    assert changes(r, "stance") == list(zip(("default", *STANCES), STANCES, strict=False))
     activity = [after for _, after in changes(r, "activity")]
     assert activity.count("transition") == len(STANCES)
     after = [activity[k + 1] for k, a in enumerate(activity) if a == "transition"]
@@ -558,7 +564,7 @@ def test_gait_and_stance_changes_while_walking() -> None:
     r = transitions_walk()
     assert r.exit_code == 0
     assert changes(r, "gait") == [("tripod", "ripple"), ("ripple", "wave")]
-    assert changes(r, "stance") == list(zip(("default", *STANCES), STANCES))
+    assert changes(r, "stance") == list(zip(("default", *STANCES), STANCES, strict=False))
     activity = [after for _, after in changes(r, "activity")]
     # Each change stops the walk, re-places the feet, and the walk resumes.
     assert activity.count("walking") == 1 + 2 + len(STANCES)
@@ -658,7 +664,7 @@ def test_straight_walk_moves_the_body_as_the_stance_feet_say() -> None:
     legs = leg_states(r)
     times = [t for t in sorted(legs) if start <= t <= end]
     body = np.zeros(2)
-    for a, b in zip(times, times[1:]):
+    for a, b in itertools.pairwise(times):
         down = [
             np.subtract(legs[b][leg].foot, legs[a][leg].foot)[:2]
             for leg in range(N_LEGS)
@@ -667,7 +673,7 @@ def test_straight_walk_moves_the_body_as_the_stance_feet_say() -> None:
         if down:
             body -= np.mean(down, axis=0)
     motions = [m for m in r.log.messages("motion", of=BodyMotion) if start <= m.t <= end]
-    integrated = sum(b.twist[0] * (b.t - a.t) for a, b in zip(motions, motions[1:]))
+    integrated = sum(b.twist[0] * (b.t - a.t) for a, b in itertools.pairwise(motions))
     assert integrated == pytest.approx(expected, rel=0.02)
     assert body[0] == pytest.approx(expected, rel=0.05)
     assert abs(body[1]) < 0.005
@@ -683,7 +689,7 @@ def test_measured_feet_track_the_commanded_feet() -> None:
     for lag in range(5):
         errors = [
             math.dist(measured, legs[a][leg].foot)
-            for a, b in zip(times, times[lag:])
+            for a, b in zip(times, times[lag:], strict=False)
             for leg in range(N_LEGS)
             if (measured := legs[b][leg].measured_foot) is not None
         ]
@@ -709,7 +715,7 @@ def flip_windows(r: RunResult) -> list[tuple[float, float]]:
     events = [e for e in r.log.events(of=LocomotionChanged) if e.what == "activity"]
     starts = [e.t for e in events if e.after == "flipping"]
     ends = [e.t for e in events if e.before == "flipping"]
-    return list(zip(starts, ends))
+    return list(zip(starts, ends, strict=False))
 
 
 def test_flip_completes_within_the_limits() -> None:
@@ -768,7 +774,7 @@ def count_swings(r: RunResult, times: Iterable[float]) -> list[int]:
     legs = leg_states(r)
     ordered = sorted(times)
     started = [0] * N_LEGS
-    for a, b in zip(ordered, ordered[1:]):
+    for a, b in itertools.pairwise(ordered):
         for leg in range(N_LEGS):
             if legs[b][leg].phase == "swing" and legs[a][leg].phase != "swing":
                 started[leg] += 1
@@ -808,7 +814,7 @@ def test_bad_commands_are_refused_and_nothing_applies() -> None:
     r = bad_input()
     refused = r.log.events(of=CommandRefused)
     assert len(refused) == len(BAD_COMMANDS)
-    for phrase, event in zip(BAD_COMMANDS, refused):
+    for phrase, event in zip(BAD_COMMANDS, refused, strict=False):
         assert phrase in event.reason, (phrase, event)
     assert [e for e in r.log.events(of=LocomotionChanged) if WALK_START <= e.t < BAD_END] == []
     for s in r.log.messages("locomotion", of=LocomotionState):
