@@ -24,8 +24,6 @@ from whexar.kinematics.leg import fk
 GEOMETRY = RobotConfig().leg_geometry()
 DUTY_FACTORS = (0.5, 2 / 3, 5 / 6)
 """Tripod; tetrapod and ripple; wave."""
-HALF_HEIGHT = ("hopf", "van_der_pol", "rayleigh")
-"""CPG orbits whose table peaks at half height (see the xfail below)."""
 
 
 # --------------------------------------------------------------------------- planar_fk
@@ -124,20 +122,7 @@ def test_swing_shape_table(name: str, beta: float) -> None:
 @pytest.mark.parametrize("beta", DUTY_FACTORS)
 @pytest.mark.parametrize(
     "name",
-    [
-        pytest.param(
-            name,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="swing_shape divides the orbit's height by its raw maximum before "
-                "removing the height it has at lift-off and touchdown (half of it for these "
-                "orbits): the apex is at 0.5 of the commanded step height",
-            ),
-        )
-        if name in HALF_HEIGHT
-        else name
-        for name in TRAJECTORIES
-    ],
+    TRAJECTORIES,
 )
 def test_swing_shape_reaches_the_step_height(name: str, beta: float) -> None:
     """A swing's apex is the commanded step height (StepCommand.height_m): max h = 1."""

@@ -143,9 +143,10 @@ def swing_shape(name: str, duty_factor: float) -> SwingShape:
     phase = np.minimum(u * trajectory.swing_fraction, trajectory.swing_fraction - 1e-7)
     s, h = trajectory.at(phase)
     forward = (s - s[0]) / (s[-1] - s[0]) if s[-1] != s[0] else u
-    top = float(np.max(h)) or 1.0
-    height = (h - np.minimum(h[0], h[-1]) * (1 - u) - h[-1] * u) / top
-    height = np.maximum(height, 0.0)
+    # Height above the straight line from lift-off to touchdown (a CPG orbit is not at 0
+    # there), normalised so the apex is the commanded step height.
+    lifted = np.maximum(h - (h[0] * (1 - u) + h[-1] * u), 0.0)
+    height = lifted / (float(np.max(lifted)) or 1.0)
     height[0] = height[-1] = 0.0
     shape = SwingShape(
         name,
