@@ -238,11 +238,11 @@ def transitions_walk() -> RunResult:
             (6.0, command(gait="ripple")),
             (10.0, command(gait="wave", vx_m_s=0.05)),
             (14.0, command(stance="high")),
-            (18.5, command(stance="low")),
-            (23.0, command(stance="narrow")),
-            (27.5, command(stance="default")),
+            (19.5, command(stance="low")),
+            (25.0, command(stance="narrow")),
+            (30.5, command(stance="default")),
         ],
-        duration=31.0,
+        duration=35.0,
     )
 
 
@@ -301,7 +301,7 @@ def flip() -> RunResult:
             (13.5, command(stop=True)),
             (14.5, command(upside_down=False)),
         ],
-        duration=21.5,
+        duration=22.5,
         graph=walk_graph(bus_params=FULL_FEEDBACK),
     )
 
@@ -572,32 +572,16 @@ def test_gait_and_stance_changes_while_walking() -> None:
     assert activity.count("walking") == 1 + 2 + len(STANCES)
 
 
-RESUME_BUG = (
-    "Coordinator: the first steps after a start or a resume are not centred on the neutral "
-    "point (the gait phase resumes where it stopped, and a first swing lifted at zero speed "
-    "lands at the neutral point), so a foot stays down for up to a whole cycle and is carried "
-    "up to v·T behind its neutral point, outside the workspace: IkFailed"
-)
-STANCE_BUG = (
-    "Coordinator._change_stance moves every foot to the new height where walking left it, "
-    "before re-placing the feet: a foot a half step off its neutral point is out of reach at "
-    "the high stance's 380 mm: IkFailed"
-)
-
-
-@pytest.mark.xfail(strict=True, reason=f"{STANCE_BUG}; {RESUME_BUG}")
 def test_gait_and_stance_changes_while_walking_within_limits() -> None:
     assert faults(transitions_walk()) == []
 
 
-@pytest.mark.xfail(strict=True, reason=STANCE_BUG)
 def test_stance_change_right_after_walking_within_limits() -> None:
     r = run_walk([(WALK_START, command(vx_m_s=0.08)), (6.0, command(stance="high"))], duration=9.0)
     assert faults(r) == []
     assert changes(r, "stance") == [("default", "high")]
 
 
-@pytest.mark.xfail(strict=True, reason=RESUME_BUG)
 def test_walk_resumed_after_a_stop_within_limits() -> None:
     r = run_walk(
         [
@@ -610,7 +594,6 @@ def test_walk_resumed_after_a_stop_within_limits() -> None:
     assert faults(r) == []
 
 
-@pytest.mark.xfail(strict=True, reason=RESUME_BUG)
 def test_walk_started_in_the_high_stance_within_limits() -> None:
     r = run_walk([(2.6, command(stance="high")), (6.0, command(vx_m_s=0.1))], duration=9.0)
     assert faults(r) == []
@@ -661,7 +644,11 @@ def test_straight_walk_moves_the_body_as_the_stance_feet_say() -> None:
     commanded speed less the ramp carries it."""
     r = gait_walk("tripod")
     speed = GAIT_SPEEDS["tripod"]
-    start, end = WALK_START, WALK_START + 10.0
+    # The walk begins once the feet are placed for the gait (a re-placement after the command).
+    start = min(
+        m.t for m in r.log.messages("motion", of=BodyMotion) if m.t >= WALK_START and m.twist[0]
+    )
+    end = start + 10.0
     expected = speed * (end - start - speed / (2 * LOCO.max_accel_m_s2))
     legs = leg_states(r)
     times = [t for t in sorted(legs) if start <= t <= end]

@@ -71,7 +71,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import KinematicsError
-from whexar.kinematics.body import Stance, leg_to_body, stance_feet
+from whexar.kinematics.body import Stance, body_to_leg, leg_to_body, stance_feet
 from whexar.kinematics.gait import GAITS, TRIPOD, Gait
 from whexar.kinematics.geometry import LegGeometry
 from whexar.kinematics.leg import ik
@@ -584,21 +584,49 @@ class Coordinator(Actor):
         self._set_activity("transition")
         stance = self._stance(name)
         before = self.stance_name
-        # Height first, every foot together (the body rises or sinks), then re-place.
-        if abs(stance.height - self.height) > PLACED_M:
-            feet = [f or n for f, n in zip(self.feet, self.neutral_points, strict=True)]
-            targets = [(f[0], f[1], -stance.height) for f in feet]
-            self.height = stance.height
-            yield from self._script_moves(self._move_all(targets), self.loco.transition_s)
+        step, replace_s = self.want.step_height, self._replace_s()
+        new_points = self.neutral(stance)
+        beside = [(n[0], n[1], -self.height) for n in new_points]
+        if self._reachable(beside):
+            # The new reach at the present height, then every foot together to the new
+            # height (the body rises or sinks). Never the height first: walking may have
+            # left a foot half a step off, where the new height may not reach.
+            yield from self._replace(beside, step, replace_s)
+            yield from self._to_height(stance.height)
+        else:
+            # The new reach needs the new height: feet to their neutral points, the
+            # height, then the new reach.
+            yield from self._replace(self.neutral_points, step, replace_s)
+            yield from self._to_height(stance.height)
+            self.neutral_points = new_points
+            yield from self._replace(new_points, step, replace_s)
         self.stance_name = name
-        self.neutral_points = self.neutral(stance)
-        yield from self._replace(self.neutral_points, self.want.step_height, self._replace_s())
+        self.neutral_points = new_points
         if before != name:
             self._changed("stance", before, name)
         if mode != self.mode:
             self._changed("mode", self.mode, mode)
             self.mode = mode
         self._set_activity("standing")
+
+    def _to_height(self, height: float) -> Script:
+        """Every foot together to ``height`` below the coxa joints: the body rises or sinks."""
+        if abs(height - self.height) <= PLACED_M:
+            return
+        feet = [f or n for f, n in zip(self.feet, self.neutral_points, strict=True)]
+        self.height = height
+        targets = [(f[0], f[1], -height) for f in feet]
+        yield from self._script_moves(self._move_all(targets), self.loco.transition_s)
+
+    def _reachable(self, points: list[Vec3]) -> bool:
+        """Whether every leg reaches its point (upright frame) within its joint limits."""
+        sign = -1.0 if self.upside_down else 1.0  # a flipped leg is the mirrored one (6.8.1)
+        body = np.array([(p[0], sign * p[1], p[2]) for p in points])
+        try:
+            ik(body_to_leg(body, self.geometry), self.geometry, target="contact")
+        except KinematicsError:
+            return False
+        return True
 
     def _flip(self) -> Script:
         yield from self._sit_down()
@@ -679,18 +707,27 @@ class Coordinator(Actor):
         if not moving or self.winding_down:
             if not any(swinging):
                 self.phase_running = False
+                self.delayed = False  # at rest: the next start places the feet anew
             await self._wheels_hybrid(hybrid, swinging)
             return
+        starting = not self.phase_running
+        if starting and self._prepare_start(legs_target):
+            return  # feet first: a script places them where the gait's phase wants them
         self.phase_running = True
         new_phase = self.phase + dt / self.cycle_s
+        swing_part = self.gait.swing_fraction
         lifts: list[int] = []
+        durations: dict[int, float] = {}
         for i in range(N_LEGS):
             if swinging[i]:
                 continue
-            # A leg lifts when its own phase wraps past 0, the start of its swing (gait.py).
+            # A leg lifts when its own phase wraps past 0, the start of its swing (gait.py);
+            # at a start, a leg the table has in mid-swing lifts for what is left of it.
             offset = self.gait.offsets[i]
-            if (new_phase - offset) % 1.0 < (self.phase - offset) % 1.0:
+            psi = (new_phase - offset) % 1.0
+            if psi < (self.phase - offset) % 1.0 or (starting and psi < swing_part - 1e-9):
                 lifts.append(i)
+                durations[i] = (swing_part - psi) * self.cycle_s
         if lifts:
             down = [i for i in range(N_LEGS) if not swinging[i] and i not in lifts]
             margin = self._margin(down)
@@ -709,18 +746,63 @@ class Coordinator(Actor):
                 self.delayed = True
                 return
             self.delayed = False
-            swing_s = (1.0 - beta) * self.cycle_s
-            vx, vy, w = self.leg_twist
+            # The anterior extreme point for the wanted twist, not the ramp's: a swing that
+            # lifts while the body speeds up lands where the coming stance needs it.
+            vx, vy, w = legs_target
             half = 0.5 * beta * self.cycle_s
             for i in lifts:
                 n = self.neutral_points[i]
                 target = (n[0] + half * (vx - w * n[1]), n[1] + half * (vy + w * n[0]), n[2])
+                swing_s = max(durations[i], self.loco.min_swing_s / 2)
                 self.swing_until[i] = self.t + swing_s
                 swinging[i] = True
                 await self._send(i, "swing", swing_s, target, self.want.step_height)
         self.delayed = False
         self.phase = new_phase % 1.0
         await self._wheels_hybrid(hybrid, swinging)
+
+    def _start_phase(self) -> float:
+        """The cycle phase a gait starts from: just before one of its lift-offs, the one
+        that leaves the legs the table has in mid-swing the most of their swing."""
+        gait, part = self.gait, self.gait.swing_fraction
+        best, best_left = GAIT_START, -1.0
+        for start in sorted(set(gait.offsets)):
+            left = 1.0
+            for offset in gait.offsets:
+                psi = (start - offset) % 1.0
+                if 1e-9 < psi < part - 1e-9:
+                    left = min(left, (part - psi) / part)
+            if left > best_left + 1e-9:
+                best, best_left = (start - 1e-9) % 1.0, left
+        return best
+
+    def _prepare_start(self, twist: tuple[float, float, float]) -> bool:
+        """Before a gait starts: put each foot the table has on the ground where its phase
+        says it is, so that it reaches its posterior extreme point when it lifts (its
+        stance is centred on its neutral point). Returns True when a script does it."""
+        self.phase = self._start_phase()
+        beta, period = self.gait.duty_factor, self.cycle_s
+        part = self.gait.swing_fraction
+        vx, vy, w = twist
+        targets: list[Vec3] = []
+        for i, n in enumerate(self.neutral_points):
+            psi = (self.phase + 1e-9 - self.gait.offsets[i]) % 1.0
+            if psi < part - 1e-9:
+                targets.append(self.feet[i] or n)  # it lifts at once: it goes from anywhere
+                continue
+            k = period * (1.0 - beta / 2 - psi)
+            targets.append((n[0] + k * (vx - w * n[1]), n[1] + k * (vy + w * n[0]), n[2]))
+        if not any(self._away(i, targets[i]) for i in range(N_LEGS)):
+            return False
+        self.leg_twist = (0.0, 0.0, 0.0)
+        self.script = self._placed_for_start(targets)
+        return True
+
+    def _placed_for_start(self, targets: list[Vec3]) -> Script:
+        activity = self.activity
+        self._set_activity("transition")
+        yield from self._replace(targets, self.want.step_height, self._replace_s())
+        self._set_activity(activity if activity != "transition" else "standing")
 
     async def _wheels_hybrid(self, hybrid: bool, swinging: list[bool]) -> None:
         if not hybrid:
@@ -794,9 +876,8 @@ class Coordinator(Actor):
         if w.gait != self.gait.name and self.mode == w.mode == "walk":
             before = self.gait.name
             self.gait = GAITS[w.gait]
-            self.phase = GAIT_START
             self._changed("gait", before, w.gait)
-            return self._replace(self.neutral_points, w.step_height, self._replace_s())
+            return None  # the next start places the feet for the new gait
         if w.mode != self.mode:
             self.steer = False
             stance = self.loco.ride_stance if w.mode == "ride" else w.stance
