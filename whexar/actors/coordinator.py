@@ -69,6 +69,7 @@ from whexar.actors.messages import (
     SwingDelayed,
     Vec3,
 )
+from whexar.bus import control_table as ct
 from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import KinematicsError
 from whexar.kinematics.body import Stance, body_to_leg, leg_to_body, stance_feet
@@ -171,6 +172,11 @@ def support_margin(points: list[tuple[float, float]], cog: tuple[float, float]) 
     return best if inside else -best
 
 
+def _velocity_limit(model: str) -> float:
+    """The Velocity Limit (44) a servo of ``model`` starts with, rad/s (e-manual)."""
+    return ct.velocity_to_rad_s(ct.model(model).register("velocity_limit").initial or 0)
+
+
 def _ramp(value: float, target: float, step: float) -> float:
     if target > value + step:
         return value + step
@@ -244,6 +250,9 @@ class Coordinator(Actor):
         self._clamp_said = False
         self.phase_running = False
         self._workspace: dict[tuple[str, bool], float] = {}
+        joints = self.cfg.joints
+        self.wheel_rate_max = _velocity_limit(joints.by_name("wheel").model)
+        self.direction_rate_max = _velocity_limit(joints.by_name("direction").model)
 
     def _stance(self, name: str) -> Stance:
         return self.cfg.stance(name)
@@ -431,14 +440,22 @@ class Coordinator(Actor):
         return twist[0] * k, twist[1] * k, twist[2] * k
 
     def _limit_ride(self, twist: tuple[float, float, float]) -> tuple[float, float, float]:
-        v_max = self.loco.ride_max_speed_m_s
+        # The fastest wheel: the configured top speed, or what the wheel servo's Velocity
+        # Limit (44) turns the wheel at, whichever is lower; beyond it the bus would clamp.
+        wheel_max = self.wheel_rate_max * self.geometry.wheel_radius
+        v_max = min(self.loco.ride_max_speed_m_s, wheel_max)
         fastest = max(self._foot_speeds(twist), default=0.0)
         if fastest <= v_max:
             return twist
         k = v_max / fastest
         if not self._clamp_said:
             self._clamp_said = True
-            self._clamped("speed", fastest, v_max, "locomotion.ride_max_speed_m_s (6.5.1)")
+            why = (
+                "locomotion.ride_max_speed_m_s (6.5.1)"
+                if v_max == self.loco.ride_max_speed_m_s
+                else "the wheel servo's Velocity Limit"
+            )
+            self._clamped("speed", fastest, v_max, why)
         return twist[0] * k, twist[1] * k, twist[2] * k
 
     def _ramp_twist(
@@ -645,18 +662,29 @@ class Coordinator(Actor):
     def _align(self, headings: tuple[float, ...]) -> Script:
         """Direction servos to ``headings`` with the wheels held, then wait until they are there."""
         self._set_activity("transition")
+        previous, was_steering = self.headings, self.steer
         self.steer = True
         self.headings = headings
         self.speeds = (0.0,) * N_LEGS
         tol = math.radians(self.loco.align_tolerance_deg)
         deadline = self.t + self.loco.align_timeout_s
+        # Where the read plan does not read the direction servos, wait as long as the
+        # largest turn takes at their Velocity Limit.
+        turn = 0.0
+        for i in range(N_LEGS):
+            side, coxa = (1.0 if i % 2 == 0 else -1.0), self.coxa_measured[i] or 0.0
+            before = side * previous[i] - coxa if was_steering else 0.0
+            turn = max(turn, abs(side * headings[i] - coxa - before))
+        blind = self.t + turn / self.direction_rate_max + 2 * SETTLE_S
 
         def aligned() -> bool:
             if self.t >= deadline:
                 return True
             for i in range(N_LEGS):
                 d, c, foot = self.direction_measured[i], self.coxa_measured[i], self.feet[i]
-                if d is None or c is None or foot is None:
+                if d is None:
+                    return self.t >= blind
+                if c is None or foot is None:
                     return False
                 side = 1.0 if i % 2 == 0 else -1.0
                 want = (side * headings[i] - c + math.pi) % (2 * math.pi) - math.pi
@@ -666,6 +694,17 @@ class Coordinator(Actor):
 
         yield self._after(2 * SETTLE_S)
         yield aligned
+
+    def _enter_hybrid(self, stance: str) -> Script:
+        """The hybrid gait's stance, then the wheels aligned with the way the wheels will
+        drive before any of them turns (as for riding, 5.4)."""
+        yield from self._change_stance(stance, "hybrid")
+        share = self.loco.hybrid_wheel_share
+        vx, vy, w = (v * share for v in self._wanted_twist())
+        if any(abs(v) > STILL for v in (vx, vy, w)):
+            cmd = wheel_twist(self._contacts(), vx, vy, w, wheel_radius=self.geometry.wheel_radius)
+            yield from self._align(tuple(float(h) for h in cmd.heading))
+        self._set_activity("standing")
 
     def _wheels_stopped(self) -> bool:
         stop = self.loco.wheel_stop_speed_m_s / self.geometry.wheel_radius
@@ -889,6 +928,8 @@ class Coordinator(Actor):
                 before = self.gait.name
                 self.gait = GAITS[w.gait]
                 self._changed("gait", before, self.gait.name)
+            if w.mode == "hybrid":
+                return self._enter_hybrid(stance)
             return self._change_stance(stance, w.mode)
         if w.stop:
             w.stop = False
