@@ -13,6 +13,7 @@ from typing import Any
 
 from whexar.actors.messages import MotionCommand
 from whexar.robot import LEG_NAMES
+from whexar.runtime.messages import Message
 from whexar.testing.harness import Harness, RunResult, run_actors
 
 WALK_CHANNELS: dict[str, dict[str, Any]] = {
@@ -24,6 +25,7 @@ WALK_CHANNELS: dict[str, dict[str, Any]] = {
     "locomotion": {"message": "LocomotionState", "policy": "latest"},
     "commands": {"message": "MotionCommand", "policy": "queue"},
     "reflex": {"message": "JointGoals", "policy": "queue"},
+    "tilt": {"message": "BodyTilt", "policy": "latest"},
 }
 
 
@@ -34,9 +36,14 @@ def walk_graph(
     bus_params: Mapping[str, Any] | None = None,
     leg_params: Mapping[str, Any] | None = None,
     reflex: bool = False,
+    tilt: bool = False,
     stop_timeout_s: float = 3.0,
 ) -> dict[str, Any]:
-    """A wiring document: bus on ``port``, six legs, the coordinator; ``commands`` fed."""
+    """A wiring document: bus on ``port``, six legs, the coordinator; ``commands`` fed.
+
+    ``reflex`` wires a ``reflex`` channel into every leg and ``tilt`` a ``tilt`` channel
+    (:class:`BodyTilt`) into the coordinator, both for a scenario to feed.
+    """
     cfg = {"config": config} if config else {}
     actors: list[dict[str, Any]] = [
         {
@@ -65,11 +72,16 @@ def walk_graph(
             "name": "coordinator",
             "class": "whexar.actors.coordinator:Coordinator",
             "params": dict(cfg),
-            "inputs": {"servo_state": "servo-state", "commands": "commands", "legs": "legs"},
+            "inputs": {
+                "servo_state": "servo-state",
+                "commands": "commands",
+                "legs": "legs",
+                **({"tilt": "tilt"} if tilt else {}),
+            },
             "outputs": {"steps": "steps", "motion": "motion", "state": "locomotion"},
         }
     )
-    names = [n for n in WALK_CHANNELS if reflex or n != "reflex"]
+    names = [n for n in WALK_CHANNELS if (reflex or n != "reflex") and (tilt or n != "tilt")]
     return {
         "runtime": {"stop_timeout_s": stop_timeout_s, "ready_timeout_s": 10.0},
         "actors": actors,
@@ -82,16 +94,21 @@ def run_walk(
     *,
     duration: float,
     graph: Mapping[str, Any] | None = None,
+    messages: Sequence[tuple[float, str, Message]] = (),
 ) -> RunResult:
     """Run :func:`walk_graph` for ``duration`` s of virtual time, feeding ``commands``
-    ((time, command) pairs, in order) into the ``commands`` channel."""
+    ((time, command) pairs) into the ``commands`` channel and ``messages`` ((time,
+    channel, message) triples) into theirs, all in time order."""
     doc = dict(graph) if graph is not None else walk_graph()
-    feeds = ["commands"] + (["reflex"] if "reflex" in doc["channels"] else [])
+    feeds = ["commands"] + [n for n in ("reflex", "tilt") if n in doc["channels"]]
+    timeline = sorted(
+        [(t, "commands", cmd) for t, cmd in commands] + list(messages), key=lambda e: e[0]
+    )
 
     async def scenario(h: Harness) -> None:
-        for t, cmd in commands:
+        for t, channel, msg in timeline:
             await h.sleep_until(t)
-            await h.feed("commands", cmd)
+            await h.feed(channel, msg)
 
     return run_actors(doc, duration=duration, scenario=scenario, feeds=feeds)
 
