@@ -75,7 +75,7 @@ from whexar.actors.messages import CommandRefused, LocomotionState, MotionComman
 from whexar.errors import MISSING, ConfigError, Problem, UsageError
 from whexar.kinematics.gait import GAIT_RANKING
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
-from whexar.runtime.schema import Positive
+from whexar.runtime.schema import Positive, read_text
 
 # --------------------------------------------------------------------------- command fields
 
@@ -267,17 +267,7 @@ def load_script(path: str | Path, *, source: str = "commands") -> tuple[MotionCo
     ``t`` earlier than one before it, an unknown key, a value of the wrong type.
     """
     name = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise ConfigError(
-            name, [Problem("(file)", name, f"a readable command script ({reason})")]
-        ) from None
-    except UnicodeDecodeError as exc:
-        raise ConfigError(
-            name, [Problem("(file)", name, f"UTF-8 text ({exc.reason} at byte {exc.start})")]
-        ) from None
+    text = read_text(path, "a readable command script", encoding="utf-8-sig")
     problems: list[Problem] = []
     commands: list[MotionCommand] = []
     latest: tuple[float, int] | None = None  # the greatest t so far, and its line

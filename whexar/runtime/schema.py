@@ -185,16 +185,25 @@ def _syntax_problem(exc: tomllib.TOMLDecodeError, text: str) -> Problem:
     return Problem(f"line {line}", shown, f"valid TOML: {exc}")
 
 
+def read_text(path: str | Path, what: str, *, encoding: str = "utf-8") -> str:
+    """The text of the file ``what`` names (``"a readable TOML file"``); a missing or
+    unreadable file, or one that is not text, is a :class:`ConfigError` saying so."""
+    source = str(path)
+    try:
+        return Path(path).read_text(encoding=encoding)
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        raise ConfigError(source, [Problem("(file)", source, f"{what} ({reason})")]) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            source, [Problem("(file)", source, f"UTF-8 text ({exc.reason} at byte {exc.start})")]
+        ) from None
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Read a TOML file; a missing file or a syntax error is a :class:`ConfigError`."""
     source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        raise ConfigError(
-            source, [Problem("(file)", source, f"a readable TOML file ({reason})")]
-        ) from None
+    text = read_text(path, "a readable TOML file")
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
