@@ -319,6 +319,11 @@ class VirtualServo:
         """Bus time the dynamics have been advanced to."""
         return self._t
 
+    @property
+    def drive(self) -> Drive:
+        """What the control table asks of the motor now (a physics world reads it)."""
+        return self._drive or self._make_drive()
+
     def set_state(self, position: float, velocity: float = 0.0) -> None:
         """Put the horn at ``position`` ticks moving at ``velocity`` ticks/s (a hook's override)."""
         self.motion.position = float(position)

@@ -1,0 +1,11 @@
+"""The simulated WHexaR: a MuJoCo world behind the real bus and sensor paths.
+
+* :mod:`~whexar.sim.motors` — the MX servos' motors and firmware gains, with sources;
+* :mod:`~whexar.sim.model` — the MJCF (and URDF) model built from the configuration;
+* :mod:`~whexar.sim.terrain` — the terrains;
+* :mod:`~whexar.sim.world` — the physics world behind the servo emulator and the sensor
+  emulators, advanced on the runtime's virtual clock.
+
+May import: :mod:`whexar.testing`, :mod:`whexar.actors` and everything below them;
+never the benchmarks or the command line.
+"""

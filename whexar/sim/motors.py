@@ -1,0 +1,112 @@
+"""What the motors inside WHexaR's servos are, and how their firmware drives them.
+
+The model is Rhoban's "BAM: Better Actuator Models" (Duclusaud and Passault, ICRA 2025;
+github.com/Rhoban/bam), identified on MX-64 and MX-106 servos on a pendulum bench. The
+firmware turns the position error into a PWM duty cycle, the H-bridge puts duty × supply
+on the motor, and the motor gives
+
+    τ = kt·V/R − kt²·ω/R        (back-EMF through the winding resistance)
+
+at the output shaft (kt in N·m/A at the output, ω the joint's speed), less friction
+(Coulomb and viscous, model "m1"), with the rotor's reflected inertia as armature.
+Present Current is τ / kt: the motor current.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Final
+
+from whexar.bus.control_table import TICKS_PER_REV
+
+
+@dataclass(frozen=True)
+class MotorModel:
+    """One servo model's motor at its output shaft, SI units."""
+
+    kt: float
+    """Torque constant, N·m/A (= back-EMF constant, V·s/rad)."""
+    resistance: float
+    """Winding resistance, Ω."""
+    armature: float
+    """Reflected rotor inertia, kg·m²."""
+    coulomb: float
+    """Coulomb friction, N·m."""
+    viscous: float
+    """Viscous friction, N·m·s/rad."""
+    source: str
+
+    def stall_torque(self, volts: float) -> float:
+        """τ at ω = 0 and full voltage: kt·V/R."""
+        return self.kt * volts / self.resistance
+
+    def no_load_speed(self, volts: float) -> float:
+        """ω where the motor's torque falls to its Coulomb friction, rad/s."""
+        return (volts - self.coulomb * self.resistance / self.kt) / self.kt
+
+
+MOTORS: Final[dict[str, MotorModel]] = {
+    # BAM, bam/params/mx64/m1.json and mx106/m1.json (model m1: Coulomb + viscous).
+    "MX-64": MotorModel(
+        kt=1.6224667906987444,
+        resistance=3.949433673232461,
+        armature=0.011951238325312509,
+        coulomb=0.09038677246291783,
+        viscous=0.011691602145974832,
+        source="BAM (ICRA 2025), bam/params/mx64/m1.json",
+    ),
+    "MX-106": MotorModel(
+        kt=2.1913757006745245,
+        resistance=2.9649903987776804,
+        armature=0.026609234235148084,
+        coulomb=0.10352026623606064,
+        viscous=0.03520238029013507,
+        source="BAM (ICRA 2025), bam/params/mx106/m1.json",
+    ),
+    # BAM did not identify the MX-28. Its datasheet (ROBOTIS e-manual, MX-28(2.0), and
+    # Table 5.1): stall torque 2.5 N·m at 1.4 A and 12 V, so kt = 2.5/1.4 and
+    # R = 12 V/1.4 A. Armature and friction are the MX-64's scaled by the stall torque
+    # (2.5/6.0): an estimate, not a measurement; it gives a no-load speed of 6.6 rad/s
+    # (63 rpm) against the datasheet's 55 rpm.
+    "MX-28": MotorModel(
+        kt=2.5 / 1.4,
+        resistance=12.0 / 1.4,
+        armature=0.011951238325312509 * 2.5 / 6.0,
+        coulomb=0.09038677246291783 * 2.5 / 6.0,
+        viscous=0.011691602145974832 * 2.5 / 6.0,
+        source="MX-28 datasheet (stall 2.5 N·m, 1.4 A at 12 V); armature and friction "
+        "scaled from BAM's MX-64 by stall torque (estimate)",
+    ),
+}
+"""The motor of each servo model the configuration may name."""
+
+MAX_DUTY: Final = 0.9625
+"""Largest duty cycle the MX firmware outputs (BAM, bam/dynamixel/actuator.py: measured
+with an oscilloscope)."""
+PWM_LIMIT: Final = 885
+"""PWM Limit (36) of the MX (2.0) servos: 885 = 100 % duty (e-manual)."""
+KPP_DIVISOR: Final = 128
+"""Position P Gain (84) / 128 = KPP (e-manual, MX (2.0), "Position PID Gain")."""
+TICKS_PER_RAD: Final = TICKS_PER_REV / (2 * math.pi)
+
+
+def position_duty_per_rad(p_gain: int) -> float:
+    """Duty cycle per radian of position error for Position P Gain (84) = ``p_gain``.
+
+    Protocol 2.0 firmware: PWM = KPP · error in ticks, KPP = P/128, full duty at the PWM
+    Limit (885), the mapping BAM uses for the XL330 (bam/dynamixel/actuator.py). At the
+    default P = 850 this is 4.89 per rad; BAM's MX fit under Protocol 1.0 (error gain 0.158
+    × P 32) is 5.06 per rad: the two agree within 4 %.
+    """
+    return p_gain / KPP_DIVISOR * TICKS_PER_RAD / PWM_LIMIT
+
+
+__all__ = [
+    "KPP_DIVISOR",
+    "MAX_DUTY",
+    "MOTORS",
+    "PWM_LIMIT",
+    "MotorModel",
+    "position_duty_per_rad",
+]

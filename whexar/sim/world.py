@@ -1,0 +1,400 @@
+"""The physics world behind the servo emulator and the sensor emulators.
+
+Theory of operation
+-------------------
+whexar runs against the simulation exactly as against the robot: the bus
+scheduler talks to an emulated servo chain through dynamixel-sdk, the sensor
+reader decodes the emulated board's frames, the IMU reader reads a fake
+LSM9DS1. :class:`SimWorld` puts a MuJoCo model behind all three.
+
+*Time.* Nothing advances the world but the bus: every transaction brings each
+virtual servo's dynamics up to the transaction's bus time
+(:meth:`~whexar.bus.emulator.servo.VirtualServo.advance`), and each servo's
+dynamics here is the world's joint (:class:`_JointDynamics`), which first
+steps the world to that time. A transaction taking 6 ms of wire time costs
+6 ms of simulated time; on virtual time the whole run is deterministic. The
+world steps in whole timesteps, so it lags bus time by less than one.
+
+*Servos.* Each step, every joint's torque is what an MX servo's firmware and
+motor make of its control table (:mod:`whexar.sim.motors`):
+
+* position modes: the firmware's profile moves a desired position toward Goal
+  Position at Profile Velocity (or the Velocity Limit) and Profile
+  Acceleration; the duty cycle is the Position P Gain (84) times the error,
+  clipped to ±96 %; velocity mode (the wheels): PI on the velocity error with
+  Velocity P and I Gains (78, 76);
+* the H-bridge puts duty × supply voltage on the motor, whose torque is
+  τ = kt·V/R − kt²·ω/R (BAM); friction and armature are the joint's own;
+* torque off: no voltage and an open bridge: the joint coasts.
+
+Present Position and Velocity are the joint's; Present Current is τ / kt (the
+MX-28 reports Present Load, the same as a fraction of its stall current).
+
+*Sensors*, refreshed as the world advances (every :data:`SENSE_PERIOD_S`):
+the force sensor under each leg reads the wheel's contact force through an
+FSR divider (:func:`fsr_counts`); the IR rangefinders cast rays
+(eq. 5.5 inverted); the IMU reads the specific force and angular rate at the
+``imu`` site, mounted with its x axis to the body's left and its y axis to
+the rear, so that the tilt angles of eq. 5.6–5.7 are the body's roll and
+pitch (nose down positive).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Final
+
+import mujoco
+import numpy as np
+
+from whexar.bus import control_table as ct
+from whexar.bus.emulator.chain import ServoChain
+from whexar.bus.emulator.dynamics import VELOCITY_MODE, Drive, Motion, ServoView
+from whexar.bus.emulator.servo import VirtualServo
+from whexar.config import RobotConfig
+from whexar.robot import JOINT_NAMES, LEG_NAMES
+from whexar.sensors.board_emulator import SensorBoardEmulator, counts_for_distance
+from whexar.sensors.imu_emulator import FakeLsm9ds1
+from whexar.sim.motors import MAX_DUTY, MOTORS, PWM_LIMIT, TICKS_PER_RAD, position_duty_per_rad
+
+SENSE_PERIOD_S: Final = 0.01
+"""How often the simulated sensors are refreshed (the board samples at 50 Hz, the IMU at 50)."""
+STANDARD_G: Final = 9.80665
+FSR_DIVIDER_OHM: Final = 10_000.0
+"""The FSR's divider resistor on the sensor board (Fig. 5.7: 10 kΩ)."""
+FSR_OHM_NEWTON: Final = 100_000.0
+"""FSR resistance × force, Ω·N: an FSR's conductance grows about linearly with force
+(Interlink FSR 400 series integration guide, "force vs. conductance"): 100 kΩ at 1 N,
+7 kΩ under a sixth of WHexaR's weight (14.4 N)."""
+ADC_MAX: Final = 1023
+VELOCITY_UNIT_RAD_S: Final = ct.velocity_to_rad_s(1)
+"""Velocity registers count 0.229 rev/min (e-manual)."""
+KVP_DIVISOR: Final = 128
+KVI_DIVISOR: Final = 65536
+"""Velocity P Gain (78) / 128 and Velocity I Gain (76) / 65536 (e-manual, MX (2.0))."""
+CONTROL_PERIOD_S: Final = 0.001
+"""The firmware's control period over which the velocity error is integrated (1 kHz)."""
+
+
+def fsr_counts(force_n: float) -> int:
+    """ADC counts of the FSR divider under ``force_n`` newtons (0 with no load)."""
+    if force_n <= 0.0:
+        return 0
+    r_fsr = FSR_OHM_NEWTON / force_n
+    return min(ADC_MAX, round(ADC_MAX * FSR_DIVIDER_OHM / (FSR_DIVIDER_OHM + r_fsr)))
+
+
+@dataclass(eq=False)
+class _Joint:
+    """One joint of the world and the servo that drives it."""
+
+    leg: int
+    joint: int
+    servo: VirtualServo
+    qadr: int
+    dadr: int
+    actuator: int
+    kt: float
+    resistance: float
+    stall_current: float
+    amps_unit: float | None
+    desired: float = 0.0
+    """The firmware profile's desired position, rad."""
+    desired_v: float = 0.0
+    integral: float = 0.0
+    """Velocity-mode error integral, velocity units × control periods."""
+    torque: float = 0.0
+    accel: float = 0.0
+    drive: Drive | None = None
+    gains: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+class _JointDynamics:
+    """A virtual servo's dynamics: the world's joint (the seam of emulator.dynamics)."""
+
+    def __init__(self, world: SimWorld, joint: _Joint) -> None:
+        self.world = world
+        self.joint = joint
+
+    def advance(self, motion: Motion, drive: Drive, dt: float) -> None:
+        """Step the world to the servo's time, then read the joint."""
+        j = self.joint
+        self.world.advance_to(j.servo.time)
+        d = self.world.data
+        q = float(d.qpos[j.qadr])
+        w = float(d.qvel[j.dadr])
+        motion.position = q * TICKS_PER_RAD + ct.CENTER_TICKS
+        motion.velocity = w * TICKS_PER_RAD
+        motion.acceleration = j.accel * TICKS_PER_RAD
+
+
+class SimWorld:
+    """A MuJoCo model of WHexaR driving the emulated servos, board and IMU.
+
+    ``model`` is the robot on its terrain (:func:`whexar.sim.model.load_model`);
+    ``chain`` the servo chain the bus scheduler opens; ``board`` and ``imu`` the
+    sensor emulators, when the graph reads them.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        chain: ServoChain,
+        *,
+        cfg: RobotConfig | None = None,
+        board: SensorBoardEmulator | None = None,
+        imu: FakeLsm9ds1 | None = None,
+    ) -> None:
+        self.cfg = cfg or RobotConfig()
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.chain = chain
+        self.board = board
+        self.imu = imu
+        self.h = float(model.opt.timestep)
+        self.steps = 0
+        self.time = 0.0
+        self._sensed_at = -math.inf
+        self.joints: list[_Joint] = []
+        self.by_servo: dict[int, _Joint] = {}
+        for leg, spec in enumerate(self.cfg.legs):
+            for j, sid in enumerate(spec.servo_ids):
+                name = f"{LEG_NAMES[leg]}_{JOINT_NAMES[j]}"
+                jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+                aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+                servo = chain.servos[sid]
+                model_name = servo.model.name
+                motor = MOTORS[model_name]
+                joint = _Joint(
+                    leg,
+                    j,
+                    servo,
+                    int(model.jnt_qposadr[jid]),
+                    int(model.jnt_dofadr[jid]),
+                    aid,
+                    motor.kt,
+                    motor.resistance,
+                    self.cfg.servo_models[model_name].stall_current_a,  # type: ignore[index]
+                    servo.model.current_unit_a,
+                )
+                self.joints.append(joint)
+                self.by_servo[sid] = joint
+                servo.dynamics = _JointDynamics(self, joint)
+        chain.load_model = self._current
+        self._base = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "base")
+        self._imu_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "imu")
+        self._wheel_geoms = [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_wheel") for leg in LEG_NAMES
+        ]
+        self._ir_sites = [
+            mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
+            for name in ("ir_right", "ir_left")
+        ]
+        # Rays see the terrain, not the robot: its geoms go to a group the rays skip.
+        robot = {b for b in range(model.nbody) if model.body_rootid[b] == self._base}
+        for g in range(model.ngeom):
+            if int(model.geom_bodyid[g]) in robot:
+                model.geom_group[g] = ROBOT_GEOM_GROUP
+        self._ray_groups = np.ones(6, dtype=np.uint8)
+        self._ray_groups[ROBOT_GEOM_GROUP] = 0
+        self.fsr_counts: list[int] = [0] * 6
+        self.ir_counts: list[int] = [0, 0]
+        if board is not None:
+            board.script = self._board_inputs
+        mujoco.mj_forward(model, self.data)
+        self._sync_servos()
+
+    # ----------------------------------------------------------------- state
+
+    def set_pose(
+        self,
+        angles: Mapping[tuple[int, int], float],
+        *,
+        base_xyz: tuple[float, float, float] = (0.0, 0.0, 0.3),
+        base_quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0),
+    ) -> None:
+        """Place the robot: joint angles by (leg, joint) in rad, the base pose; at rest."""
+        d = self.data
+        d.qpos[0:3] = base_xyz
+        d.qpos[3:7] = base_quat
+        d.qvel[:] = 0.0
+        for j in self.joints:
+            d.qpos[j.qadr] = angles.get((j.leg, j.joint), 0.0)
+        mujoco.mj_forward(self.model, d)
+        self._sync_servos()
+        self._sense()
+
+    def _sync_servos(self) -> None:
+        d = self.data
+        for j in self.joints:
+            q = float(d.qpos[j.qadr])
+            j.desired, j.desired_v = q, 0.0
+            j.servo.set_state(q * TICKS_PER_RAD + ct.CENTER_TICKS, 0.0)
+
+    # ----------------------------------------------------------------- stepping
+
+    def advance_to(self, t: float) -> None:
+        """Step the physics until the next step would pass bus time ``t``."""
+        if self.time + self.h > t + 1e-12:
+            return
+        drives = [self._orders(j) for j in self.joints]
+        m, d = self.model, self.data
+        while self.time + self.h <= t + 1e-12:
+            for joint, (drive, gains) in zip(self.joints, drives, strict=True):
+                self._control(joint, drive, gains)
+            before = [float(d.qvel[j.dadr]) for j in self.joints]
+            mujoco.mj_step(m, d)
+            self.steps += 1
+            self.time = self.steps * self.h
+            for j, w0 in zip(self.joints, before, strict=True):
+                j.accel = (float(d.qvel[j.dadr]) - w0) / self.h
+        if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
+            self._sense()
+
+    def _orders(self, j: _Joint) -> tuple[Drive, tuple[float, float, float]]:
+        """The servo's drive and its gains (position duty/rad, KVP, KVI), read again only
+        when a write made a new drive."""
+        drive = j.servo.drive
+        if drive is not j.drive:
+            s = j.servo
+            j.drive = drive
+            j.gains = (
+                position_duty_per_rad(s.register_value("position_p_gain")),
+                s.register_value("velocity_p_gain") / KVP_DIVISOR,
+                s.register_value("velocity_i_gain") / KVI_DIVISOR,
+            )
+        return drive, j.gains
+
+    def _control(self, j: _Joint, dr: Drive, gains: tuple[float, float, float]) -> None:
+        """The firmware and the motor of one servo for one step: the joint's torque."""
+        d = self.data
+        if not dr.torque:
+            j.torque = 0.0
+            j.integral = 0.0
+            j.desired, j.desired_v = float(d.qpos[j.qadr]), 0.0
+            d.ctrl[j.actuator] = 0.0
+            return
+        w = float(d.qvel[j.dadr])
+        volts = j.servo.input_voltage_v
+        h = self.h
+        if dr.mode == VELOCITY_MODE:
+            goal = dr.goal_velocity / TICKS_PER_RAD
+            error_units = (goal - w) / VELOCITY_UNIT_RAD_S
+            _, kvp, kvi = gains
+            pwm = kvp * error_units + kvi * (j.integral + error_units * h / CONTROL_PERIOD_S)
+            duty = pwm / PWM_LIMIT
+            if -MAX_DUTY < duty < MAX_DUTY:  # no wind-up while saturated
+                j.integral += error_units * h / CONTROL_PERIOD_S
+        else:
+            goal = (dr.goal_position - ct.CENTER_TICKS) / TICKS_PER_RAD
+            vmax = dr.max_velocity / TICKS_PER_RAD
+            amax = dr.max_acceleration / TICKS_PER_RAD
+            # The firmware's profile: the desired position runs toward the goal at the
+            # profile's velocity, ramping at its acceleration (a step when that is 0).
+            gap = goal - j.desired
+            v = j.desired_v
+            if math.isinf(amax):
+                v = max(-vmax, min(vmax, gap / h))
+            else:
+                stop = v * v / (2 * amax)
+                want = math.copysign(vmax, gap) if abs(gap) > stop else 0.0
+                v += max(-amax * h, min(amax * h, want - v))
+                if abs(v * h) > abs(gap):
+                    v = gap / h
+            j.desired += v * h
+            j.desired_v = v
+            duty = gains[0] * (j.desired - float(d.qpos[j.qadr]))
+        duty = max(-MAX_DUTY, min(MAX_DUTY, duty))
+        # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft.
+        tau = j.kt * (duty * volts - j.kt * w) / j.resistance
+        j.torque = tau
+        d.ctrl[j.actuator] = tau
+
+    def _current(self, servo: ServoView, t: float) -> float:
+        """Present Current (A), or for the MX-28 its Present Load as a fraction of stall."""
+        j = self.by_servo[servo.id]
+        amps = j.torque / j.kt
+        return amps if j.amps_unit is not None else amps / j.stall_current
+
+    # ----------------------------------------------------------------- sensors
+
+    def _sense(self) -> None:
+        self._sensed_at = self.time
+        m, d = self.model, self.data
+        forces = [0.0] * 6
+        wrench = np.zeros(6)
+        wheels = {g: i for i, g in enumerate(self._wheel_geoms)}
+        for k in range(d.ncon):
+            c = d.contact[k]
+            leg = wheels.get(int(c.geom1), wheels.get(int(c.geom2)))
+            if leg is None:
+                continue
+            mujoco.mj_contactForce(m, d, k, wrench)
+            forces[leg] += abs(float(wrench[0]))  # the normal force, in the contact frame
+        self.fsr_counts = [fsr_counts(f) for f in forces]
+        geom = np.zeros(1, dtype=np.int32)
+        ir = self.cfg.ir
+        counts = []
+        for site in self._ir_sites:
+            pos = d.site_xpos[site]
+            direction = d.site_xmat[site].reshape(3, 3)[:, 2]
+            dist = mujoco.mj_ray(m, d, pos, direction, self._ray_groups, 1, -1, geom)
+            far = ir.max_distance_mm / 1000
+            if dist < 0 or dist > far:
+                dist = far * 1.5  # nothing in range: the sensor's low floor
+            counts.append(
+                counts_for_distance(max(dist, ir.min_distance_mm / 1000), ir.k_cm, ir.exponent)
+            )
+        self.ir_counts = counts
+        if self.imu is not None:
+            mujoco.mj_rnePostConstraint(m, d)
+            acc = np.zeros(6)
+            mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_SITE, self._imu_site, acc, 1)
+            gyro = np.zeros(6)
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, self._imu_site, gyro, 1)
+            fx, fy, fz = (float(a) / STANDARD_G for a in acc[3:])
+            wx, wy, wz = (math.degrees(float(w)) for w in gyro[:3])
+            # Mounted with its x axis to the body's left, y to the rear (module docstring).
+            self.imu.accel_g = (fy, -fx, fz)
+            self.imu.gyro_dps = (wy, -wx, wz)
+
+    def _board_inputs(self, board_t: float) -> dict[str, int]:
+        counts = {f"fsr{i + 1}": c for i, c in enumerate(self.fsr_counts)}
+        counts["ir1"], counts["ir2"] = self.ir_counts
+        return counts
+
+    # ----------------------------------------------------------------- read-outs
+
+    @property
+    def base_position(self) -> tuple[float, float, float]:
+        """The body centre in the world, m."""
+        x, y, z = (float(v) for v in self.data.qpos[0:3])
+        return x, y, z
+
+    @property
+    def base_quat(self) -> tuple[float, float, float, float]:
+        """The body's orientation (w, x, y, z)."""
+        w, x, y, z = (float(v) for v in self.data.qpos[3:7])
+        return w, x, y, z
+
+    def electric_power(self) -> float:
+        """Σ V·I over the servos, W: what the supply gives the motors now."""
+        return sum(abs(j.torque / j.kt) * j.servo.input_voltage_v for j in self.joints)
+
+    def state_hash(self) -> str:
+        """A hash of the world's full state: equal runs give equal hashes, bit for bit."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for array in (self.data.qpos, self.data.qvel, self.data.act):
+            h.update(np.ascontiguousarray(array).tobytes())
+        h.update(repr(self.time).encode())
+        return h.hexdigest()
+
+
+ROBOT_GEOM_GROUP: Final = 3
+"""The geom group the robot's own geoms are moved to, so that rays skip them."""
+
+__all__ = ["SENSE_PERIOD_S", "SimWorld", "fsr_counts"]
