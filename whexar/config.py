@@ -725,7 +725,10 @@ class LocomotionSpec(Section):
     min_stability_margin_mm: Positive = 30.0
     """No leg lifts when the static margin of the remaining feet would fall below this."""
     trochanter_follows_pitch: bool = True
-    """Turn the trochanters with the body pitch (eq. 4.18)."""
+    """Turn the trochanters with the body pitch (eq. 4.18), commanded and measured."""
+    tilt_filter_s: Positive = 1.0
+    """Time constant of the low-pass on the measured pitch the trochanters follow: a slope
+    is steady, the accelerations of walking are not."""
     transition_s: Positive = 1.0
     """Duration of a stance change, a leg re-placement, a body pose change."""
     stand_up_s: Positive = 2.0

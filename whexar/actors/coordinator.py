@@ -227,6 +227,7 @@ class Coordinator(Actor):
         self.phase = GAIT_START
         self.cycle_s = loco.max_cycle_s
         self.tilt_pitch = 0.0
+        self.tilt_measured = 0.0
         self.swing_until = [-math.inf] * N_LEGS
         self.feet: list[Vec3 | None] = [None] * N_LEGS
         self.wheel_measured: list[float | None] = [None] * N_LEGS
@@ -481,11 +482,16 @@ class Coordinator(Actor):
             elif j.joint == 0:
                 self.coxa_measured[j.leg] = j.position_rad
 
-    def _take_tilt(self) -> None:
-        if self.tilt.connected:
-            tilt = self.tilt.latest()
-            if tilt is not None:
-                self.tilt_pitch = tilt.pitch_rad
+    def _take_tilt(self, dt: float) -> None:
+        """The measured pitch, low-passed: the trochanters follow a slope, not the shakes of
+        each step (an accelerometer reads the body's accelerations as tilt too)."""
+        if not self.tilt.connected:
+            return
+        tilt = self.tilt.latest()
+        if tilt is not None:
+            self.tilt_measured = tilt.pitch_rad
+        k = min(1.0, dt / self.loco.tilt_filter_s)
+        self.tilt_pitch += (self.tilt_measured - self.tilt_pitch) * k
 
     def _take_legs(self) -> None:
         if self.legs.connected:
@@ -950,7 +956,7 @@ class Coordinator(Actor):
         self.cycle = states.cycle
         self._take_states(states)
         self._take_legs()
-        self._take_tilt()
+        self._take_tilt(dt)
         if self.commands.connected:
             for cmd in self.commands.drain():
                 self._clamp_said = False

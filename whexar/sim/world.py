@@ -56,6 +56,7 @@ from whexar.bus.emulator.servo import VirtualServo
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.sensors.board_emulator import SensorBoardEmulator, counts_for_distance
+from whexar.sensors.frame import FSR_KEYS, IR_KEYS
 from whexar.sensors.imu_emulator import FakeLsm9ds1
 from whexar.sim.motors import MAX_DUTY, MOTORS, PWM_LIMIT, TICKS_PER_RAD, position_duty_per_rad
 
@@ -157,6 +158,8 @@ class SimWorld:
         self.steps = 0
         self.time = 0.0
         self._sensed_at = -math.inf
+        self._imu_v = np.zeros(3)
+        self._imu_t = 0.0
         self.joints: list[_Joint] = []
         self.by_servo: dict[int, _Joint] = {}
         for leg, spec in enumerate(self.cfg.legs):
@@ -349,20 +352,26 @@ class SimWorld:
             )
         self.ir_counts = counts
         if self.imu is not None:
-            mujoco.mj_rnePostConstraint(m, d)
-            acc = np.zeros(6)
-            mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_SITE, self._imu_site, acc, 1)
-            gyro = np.zeros(6)
-            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, self._imu_site, gyro, 1)
-            fx, fy, fz = (float(a) / STANDARD_G for a in acc[3:])
-            wx, wy, wz = (math.degrees(float(w)) for w in gyro[:3])
+            # The chip's filter: the mean acceleration since the last reading (the change of
+            # velocity over the period), not one step's contact spikes, which a sample
+            # every 20 ms would alias into tilt.
+            vel = np.zeros(6)
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, self._imu_site, vel, 0)
+            span = self.time - self._imu_t
+            mean = (vel[3:] - self._imu_v) / span if span > 0 else np.zeros(3)
+            self._imu_v, self._imu_t = vel[3:].copy(), self.time
+            rot = d.site_xmat[self._imu_site].reshape(3, 3)
+            force = rot.T @ (mean - m.opt.gravity)  # specific force in the sensor's frame
+            gyro = rot.T @ vel[:3]
+            fx, fy, fz = (float(a) / STANDARD_G for a in force)
+            wx, wy, wz = (math.degrees(float(w)) for w in gyro)
             # Mounted with its x axis to the body's left, y to the rear (module docstring).
             self.imu.accel_g = (fy, -fx, fz)
             self.imu.gyro_dps = (wy, -wx, wz)
 
     def _board_inputs(self, board_t: float) -> dict[str, int]:
-        counts = {f"fsr{i + 1}": c for i, c in enumerate(self.fsr_counts)}
-        counts["ir1"], counts["ir2"] = self.ir_counts
+        counts = dict(zip(FSR_KEYS, self.fsr_counts, strict=True))
+        counts.update(zip(IR_KEYS, self.ir_counts, strict=True))
         return counts
 
     # ----------------------------------------------------------------- read-outs

@@ -1,0 +1,290 @@
+"""One simulated run: the full runtime driving the simulated WHexaR on virtual time.
+
+Theory of operation
+-------------------
+:func:`simulate` builds the world (:mod:`whexar.sim.model` on a terrain) and
+the three emulated devices it backs — the servo chain, the sensor board and
+the IMU — registers them under a name of their own, and runs the robot's
+actor graph against them: the bus scheduler (through dynamixel-sdk), the
+sensor and IMU readers, the six legs, the coordinator. Only the two edges
+are emulated; every actor is the one the robot runs. A scenario feeds the
+commands at their times and samples the world every
+:data:`SAMPLE_PERIOD_S` for the summary (path, tilt, electric power).
+
+The robot starts seated on the ground with the torque off, as it is when
+switched on: the bus scheduler finds the servos where the world put them,
+and the coordinator stands the robot up from there.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+from whexar.actors.messages import LocomotionChanged, LocomotionState, MotionCommand
+from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
+from whexar.config import RobotConfig, load_config
+from whexar.kinematics.body import Stance, stance_feet
+from whexar.kinematics.leg import ik
+from whexar.robot import LEG_NAMES
+from whexar.runtime.devices import DEVICES
+from whexar.runtime.messages import Event
+from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
+from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
+from whexar.sim.model import load_model
+from whexar.sim.terrain import Terrain
+from whexar.sim.world import SimWorld
+from whexar.testing.harness import Harness, RunResult, run_actors
+
+SAMPLE_PERIOD_S: Final = 0.05
+"""How often the world is sampled for the summary and the plots."""
+FALLEN_TILT_RAD: Final = math.radians(60.0)
+"""A body tilted further than this has fallen."""
+IMU_ADDRESS: Final = 0x6B
+_names = itertools.count()
+
+
+@dataclass(frozen=True)
+class Sample:
+    """The world at one time: body centre (m), tilt (rad), electric power (W)."""
+
+    t: float
+    x: float
+    y: float
+    z: float
+    roll: float
+    pitch: float
+    yaw: float
+    power_w: float
+
+
+@dataclass
+class SimResult:
+    """What a run did: the samples, every message, the world at the end."""
+
+    samples: list[Sample]
+    run: RunResult
+    world: SimWorld
+    wall_s: float
+    duration_s: float
+    mass_kg: float
+    events: list[Event] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        """The figures of ``whexar sim --json``."""
+        s = self.samples
+        distance = sum(math.hypot(b.x - a.x, b.y - a.y) for a, b in itertools.pairwise(s))
+        energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(s))
+        states = self.run.log.messages("locomotion", of=LocomotionState)
+        moving = [x for x in states if x.activity in ("walking", "riding", "hybrid")]
+        moving_s = len(moving) * (states[1].t - states[0].t) if len(states) > 1 else 0.0
+        margins = [x.margin_m for x in states if x.activity in ("walking", "standing", "hybrid")]
+        changes = self.run.log.events(of=LocomotionChanged)
+        falls = 0
+        fallen = False
+        for x in s:
+            tilted = max(abs(x.roll), abs(x.pitch)) > FALLEN_TILT_RAD
+            if tilted and not fallen:
+                falls += 1
+            fallen = tilted
+        g = 9.81
+        return {
+            "distance_m": distance,
+            "mean_speed_mps": distance / moving_s if moving_s > 0 else 0.0,
+            "energy_j": energy,
+            "cost_of_transport": energy / (self.mass_kg * g * distance) if distance > 0 else None,
+            "min_stability_margin_m": min(margins) if margins else None,
+            "gait_changes": sum(1 for c in changes if c.what == "gait"),
+            "falls": falls,
+            "sim_seconds": self.duration_s,
+            "wall_seconds": self.wall_s,
+            "realtime_factor": self.duration_s / self.wall_s if self.wall_s > 0 else None,
+            "state_hash": self.world.state_hash(),
+        }
+
+
+def seated_angles(cfg: RobotConfig) -> dict[tuple[int, int], float]:
+    """Joint angles of the seated pose: the stance's reach, the coxa joints at sit height."""
+    stance = cfg.stance(cfg.locomotion.stance)
+    seated = Stance(stance.reach, cfg.locomotion.sit_height_mm / 1000, stance.front_rear_yaw)
+    angles = ik(stance_feet(seated), cfg.leg_geometry(), target="contact").angles
+    return {(leg, j): float(angles[leg, j]) for leg in range(len(LEG_NAMES)) for j in range(5)}
+
+
+def sim_graph(name: str, *, faults: str | None = None, config: str | None = None) -> dict[str, Any]:
+    """The robot's actor graph on the devices registered as ``name``; commands are fed.
+
+    ``config`` is the robot configuration file every actor reads (default: the built-in)."""
+    cfg: dict[str, Any] = {"config": config} if config else {}
+    bus_params: dict[str, Any] = {"port": f"emulator:{name}", "plan": "default", **cfg}
+    if faults:
+        bus_params["faults"] = faults
+    actors: list[dict[str, Any]] = [
+        {
+            "name": "bus",
+            "class": "whexar.actors.bus:BusScheduler",
+            "params": bus_params,
+            "inputs": {"goals": "goals"},
+            "outputs": {"state": "servo-state"},
+        },
+        {
+            "name": "sensors",
+            "class": "whexar.actors.sensors:SensorReader",
+            "params": {"port": f"emulator:{name}", **cfg},
+            "outputs": {"loads": "loads", "ranges": "ranges"},
+        },
+        {
+            "name": "imu",
+            "class": "whexar.actors.imu:ImuReader",
+            "params": {"device": f"fake:{name}", **cfg},
+            "outputs": {"tilt": "tilt"},
+        },
+    ]
+    for leg in LEG_NAMES:
+        actors.append(
+            {
+                "name": f"leg-{leg}",
+                "class": "whexar.actors.leg:LegActor",
+                "inputs": {
+                    "servo_state": "servo-state",
+                    "steps": "steps",
+                    "motion": "motion",
+                    "loads": "loads",
+                },
+                "outputs": {"goals": "goals", "state": "legs"},
+                "params": {"leg": leg, **cfg},
+            }
+        )
+    actors.append(
+        {
+            "name": "coordinator",
+            "class": "whexar.actors.coordinator:Coordinator",
+            "inputs": {
+                "servo_state": "servo-state",
+                "commands": "commands",
+                "legs": "legs",
+                "tilt": "tilt",
+            },
+            "outputs": {"steps": "steps", "motion": "motion", "state": "locomotion"},
+            "params": dict(cfg),
+        }
+    )
+    channels = {
+        "goals": ("JointGoals", "queue"),
+        "servo-state": ("ServoStates", "latest"),
+        "loads": ("LegLoads", "latest"),
+        "ranges": ("ObstacleRanges", "latest"),
+        "tilt": ("BodyTilt", "latest"),
+        "steps": ("StepCommand", "queue"),
+        "motion": ("BodyMotion", "latest"),
+        "legs": ("LegState", "queue"),
+        "locomotion": ("LocomotionState", "latest"),
+        "commands": ("MotionCommand", "queue"),
+    }
+    return {
+        "runtime": {"stop_timeout_s": 3.0, "ready_timeout_s": 10.0},
+        "actors": actors,
+        "channels": {k: {"message": m, "policy": p} for k, (m, p) in channels.items()},
+    }
+
+
+def _tilt(quat: tuple[float, float, float, float]) -> tuple[float, float, float]:
+    w, x, y, z = quat
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def simulate(
+    *,
+    terrain: Terrain | None = None,
+    commands: Sequence[tuple[float, MotionCommand]] = (),
+    duration: float,
+    config: str | Path | None = None,
+    faults: str | Path | None = None,
+    start: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    on_sample: Callable[[Sample, SimWorld], None] | None = None,
+    timestep: float = 0.002,
+) -> SimResult:
+    """Run the robot for ``duration`` s of simulated time; see the module docstring.
+
+    ``config`` is the robot configuration file (the world and every actor read it);
+    ``start`` is (x, y, yaw) of the body on the ground; ``on_sample`` is called with every
+    sample (progress lines, video frames).
+    """
+    cfg = load_config(config) if config else RobotConfig()
+    model = load_model(cfg, terrain=terrain, timestep=timestep)
+    chain = ServoChain.for_models(cfg.servos(), baudrate=cfg.bus.baudrate)
+    board = SensorBoardEmulator(
+        frame_rate_hz=cfg.sensor_board.frame_rate_hz, baudrate=cfg.sensor_board.baudrate
+    )
+    chip = FakeLsm9ds1()
+    i2c = FakeSMBus(cfg.imu.i2c_bus)
+    i2c.attach(cfg.imu.address, chip)
+    world = SimWorld(model, chain, cfg=cfg, board=board, imu=chip)
+    x0, y0, yaw0 = start
+    half = yaw0 / 2
+    world.set_pose(
+        seated_angles(cfg),
+        base_xyz=(x0, y0, cfg.locomotion.sit_height_mm / 1000 + 0.002),
+        base_quat=(math.cos(half), 0.0, 0.0, math.sin(half)),
+    )
+    name = f"sim{next(_names)}"
+    samples: list[Sample] = []
+    power = [0.0]
+
+    def sample() -> None:
+        roll, pitch, yaw = _tilt(world.base_quat)
+        x, y, z = world.base_position
+        s = Sample(world.time, x, y, z, roll, pitch, yaw, world.electric_power())
+        samples.append(s)
+        if on_sample is not None:
+            on_sample(s, world)
+
+    async def scenario(h: Harness) -> None:
+        pending = sorted(commands, key=lambda c: c[0])
+        k = 0
+        t = 0.0
+        while True:
+            while k < len(pending) and pending[k][0] <= t + 1e-9:
+                await h.feed("commands", pending[k][1])
+                k += 1
+            sample()
+            t += SAMPLE_PERIOD_S
+            await h.sleep_until(t)
+
+    wall = time.perf_counter()
+    with (
+        DEVICES.registered(SERVO_CHAIN, name, chain),
+        DEVICES.registered(SENSOR_BOARD, name, board),
+        DEVICES.registered(I2C_BUS, name, i2c),
+    ):
+        result = run_actors(
+            sim_graph(
+                name,
+                faults=str(faults) if faults else None,
+                config=str(config) if config else None,
+            ),
+            duration=duration,
+            scenario=scenario,
+            feeds=["commands"],
+        )
+    del power
+    return SimResult(
+        samples=samples,
+        run=result,
+        world=world,
+        wall_s=time.perf_counter() - wall,
+        duration_s=duration,
+        mass_kg=cfg.robot.mass_kg,
+        events=result.log.events(),
+    )
+
+
+__all__ = ["SAMPLE_PERIOD_S", "Sample", "SimResult", "seated_angles", "sim_graph", "simulate"]
