@@ -101,15 +101,9 @@ class _Joint:
     resistance: float
     stall_current: float
     amps_unit: float | None
-    desired: float = 0.0
-    """The firmware profile's desired position, rad."""
-    desired_v: float = 0.0
-    integral: float = 0.0
-    """Velocity-mode error integral, velocity units × control periods."""
-    torque: float = 0.0
-    accel: float = 0.0
+    index: int = 0
+    """Position in the world's joint arrays."""
     drive: Drive | None = None
-    gains: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 class _JointDynamics:
@@ -122,13 +116,12 @@ class _JointDynamics:
     def advance(self, motion: Motion, drive: Drive, dt: float) -> None:
         """Step the world to the servo's time, then read the joint."""
         j = self.joint
-        self.world.advance_to(j.servo.time)
-        d = self.world.data
-        q = float(d.qpos[j.qadr])
-        w = float(d.qvel[j.dadr])
-        motion.position = q * TICKS_PER_RAD + ct.CENTER_TICKS
-        motion.velocity = w * TICKS_PER_RAD
-        motion.acceleration = j.accel * TICKS_PER_RAD
+        world = self.world
+        world.advance_to(j.servo.time)
+        k = j.index
+        motion.position = world.q[k] * TICKS_PER_RAD + ct.CENTER_TICKS
+        motion.velocity = world.w[k] * TICKS_PER_RAD
+        motion.acceleration = world.accel[k] * TICKS_PER_RAD
 
 
 class SimWorld:
@@ -182,9 +175,26 @@ class SimWorld:
                     self.cfg.servo_models[model_name].stall_current_a,  # type: ignore[index]
                     servo.model.current_unit_a,
                 )
+                joint.index = len(self.joints)
                 self.joints.append(joint)
                 self.by_servo[sid] = joint
                 servo.dynamics = _JointDynamics(self, joint)
+        n = len(self.joints)
+        self._qadr = np.array([j.qadr for j in self.joints])
+        self._dadr = np.array([j.dadr for j in self.joints])
+        self._act = np.array([j.actuator for j in self.joints])
+        self._kt = np.array([j.kt for j in self.joints])
+        self._resistance = np.array([j.resistance for j in self.joints])
+        self._on = np.zeros(n, dtype=bool)
+        self._velocity_mode = np.zeros(n, dtype=bool)
+        self._goal, self._vmax, self._amax = np.zeros(n), np.zeros(n), np.full(n, np.inf)
+        self._kp, self._kvp, self._kvi = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._volts = np.zeros(n)
+        self._desired, self._desired_v = np.zeros(n), np.zeros(n)
+        self._integral, self._torque, self._accel = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.q: list[float] = [0.0] * n
+        self.w: list[float] = [0.0] * n
+        self.accel: list[float] = [0.0] * n
         chain.load_model = self._current
         self._base = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "base")
         self._imu_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "imu")
@@ -231,10 +241,12 @@ class SimWorld:
 
     def _sync_servos(self) -> None:
         d = self.data
+        self._desired = d.qpos[self._qadr].copy()
+        self._desired_v = np.zeros(len(self.joints))
+        self.q = d.qpos[self._qadr].tolist()
+        self.w = d.qvel[self._dadr].tolist()
         for j in self.joints:
-            q = float(d.qpos[j.qadr])
-            j.desired, j.desired_v = q, 0.0
-            j.servo.set_state(q * TICKS_PER_RAD + ct.CENTER_TICKS, 0.0)
+            j.servo.set_state(self.q[j.index] * TICKS_PER_RAD + ct.CENTER_TICKS, 0.0)
 
     # ----------------------------------------------------------------- stepping
 
@@ -242,83 +254,90 @@ class SimWorld:
         """Step the physics until the next step would pass bus time ``t``."""
         if self.time + self.h > t + 1e-12:
             return
-        drives = [self._orders(j) for j in self.joints]
-        m, d = self.model, self.data
+        self._orders()
+        m, d, h = self.model, self.data, self.h
         while self.time + self.h <= t + 1e-12:
-            for joint, (drive, gains) in zip(self.joints, drives, strict=True):
-                self._control(joint, drive, gains)
-            before = [float(d.qvel[j.dadr]) for j in self.joints]
+            w0 = d.qvel[self._dadr]
+            d.ctrl[self._act] = self._control(d.qpos[self._qadr], w0)
             mujoco.mj_step(m, d)
             self.steps += 1
-            self.time = self.steps * self.h
-            for j, w0 in zip(self.joints, before, strict=True):
-                j.accel = (float(d.qvel[j.dadr]) - w0) / self.h
+            self.time = self.steps * h
+            self._accel = (d.qvel[self._dadr] - w0) / h
+        self.q = d.qpos[self._qadr].tolist()
+        self.w = d.qvel[self._dadr].tolist()
+        self.accel = self._accel.tolist()
         if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
             self._sense()
 
-    def _orders(self, j: _Joint) -> tuple[Drive, tuple[float, float, float]]:
-        """The servo's drive and its gains (position duty/rad, KVP, KVI), read again only
-        when a write made a new drive."""
-        drive = j.servo.drive
-        if drive is not j.drive:
-            s = j.servo
+    def _orders(self) -> None:
+        """Every servo's orders as arrays, read again only where a write made a new drive."""
+        for j in self.joints:
+            drive = j.servo.drive
+            if drive is j.drive:
+                continue
             j.drive = drive
-            j.gains = (
-                position_duty_per_rad(s.register_value("position_p_gain")),
-                s.register_value("velocity_p_gain") / KVP_DIVISOR,
-                s.register_value("velocity_i_gain") / KVI_DIVISOR,
+            k, s = j.index, j.servo
+            self._on[k] = drive.torque
+            self._velocity_mode[k] = drive.mode == VELOCITY_MODE
+            self._goal[k] = (
+                drive.goal_velocity / TICKS_PER_RAD
+                if drive.mode == VELOCITY_MODE
+                else (drive.goal_position - ct.CENTER_TICKS) / TICKS_PER_RAD
             )
-        return drive, j.gains
+            self._vmax[k] = drive.max_velocity / TICKS_PER_RAD
+            self._amax[k] = drive.max_acceleration / TICKS_PER_RAD
+            self._kp[k] = position_duty_per_rad(s.register_value("position_p_gain"))
+            self._kvp[k] = s.register_value("velocity_p_gain") / KVP_DIVISOR
+            self._kvi[k] = s.register_value("velocity_i_gain") / KVI_DIVISOR
+            self._volts[k] = s.input_voltage_v
+            if not drive.torque:
+                self._integral[k] = 0.0
 
-    def _control(self, j: _Joint, dr: Drive, gains: tuple[float, float, float]) -> None:
-        """The firmware and the motor of one servo for one step: the joint's torque."""
-        d = self.data
-        if not dr.torque:
-            j.torque = 0.0
-            j.integral = 0.0
-            j.desired, j.desired_v = float(d.qpos[j.qadr]), 0.0
-            d.ctrl[j.actuator] = 0.0
-            return
-        w = float(d.qvel[j.dadr])
-        volts = j.servo.input_voltage_v
+    def _control(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The firmware and the motor of every servo for one step: the joints' torques."""
         h = self.h
-        if dr.mode == VELOCITY_MODE:
-            goal = dr.goal_velocity / TICKS_PER_RAD
-            error_units = (goal - w) / VELOCITY_UNIT_RAD_S
-            _, kvp, kvi = gains
-            pwm = kvp * error_units + kvi * (j.integral + error_units * h / CONTROL_PERIOD_S)
-            duty = pwm / PWM_LIMIT
-            if -MAX_DUTY < duty < MAX_DUTY:  # no wind-up while saturated
-                j.integral += error_units * h / CONTROL_PERIOD_S
+        # Position modes: the firmware's profile runs the desired position toward the goal
+        # at the profile's velocity, ramping at its acceleration (a step when that is 0).
+        gap = self._goal - self._desired
+        v = self._desired_v
+        amax = self._amax
+        vmax = self._vmax
+        stepped = np.clip(gap / h, -vmax, vmax)
+        finite = np.isfinite(amax)
+        if finite.any():
+            a = np.where(finite, amax, 1.0)
+            stop = v * v / (2 * a)
+            want = np.where(np.abs(gap) > stop, np.copysign(vmax, gap), 0.0)
+            ramped = v + np.clip(want - v, -a * h, a * h)
+            ramped = np.where(np.abs(ramped * h) > np.abs(gap), gap / h, ramped)
+            v = np.where(finite, ramped, stepped)
         else:
-            goal = (dr.goal_position - ct.CENTER_TICKS) / TICKS_PER_RAD
-            vmax = dr.max_velocity / TICKS_PER_RAD
-            amax = dr.max_acceleration / TICKS_PER_RAD
-            # The firmware's profile: the desired position runs toward the goal at the
-            # profile's velocity, ramping at its acceleration (a step when that is 0).
-            gap = goal - j.desired
-            v = j.desired_v
-            if math.isinf(amax):
-                v = max(-vmax, min(vmax, gap / h))
-            else:
-                stop = v * v / (2 * amax)
-                want = math.copysign(vmax, gap) if abs(gap) > stop else 0.0
-                v += max(-amax * h, min(amax * h, want - v))
-                if abs(v * h) > abs(gap):
-                    v = gap / h
-            j.desired += v * h
-            j.desired_v = v
-            duty = gains[0] * (j.desired - float(d.qpos[j.qadr]))
-        duty = max(-MAX_DUTY, min(MAX_DUTY, duty))
-        # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft.
-        tau = j.kt * (duty * volts - j.kt * w) / j.resistance
-        j.torque = tau
-        d.ctrl[j.actuator] = tau
+            v = stepped
+        on = self._on
+        position = on & ~self._velocity_mode
+        self._desired_v = np.where(position, v, 0.0)
+        self._desired = np.where(position, self._desired + v * h, q)
+        duty_position = self._kp * (self._desired - q)
+        # Velocity mode (the wheels): PI on the error in velocity units (e-manual).
+        error = (self._goal - w) / VELOCITY_UNIT_RAD_S
+        ticks = h / CONTROL_PERIOD_S
+        pwm = self._kvp * error + self._kvi * (self._integral + error * ticks)
+        duty_velocity = pwm / PWM_LIMIT
+        free = np.abs(duty_velocity) < MAX_DUTY  # no wind-up while saturated
+        velocity = on & self._velocity_mode
+        self._integral = np.where(velocity & free, self._integral + error * ticks, self._integral)
+        duty = np.clip(
+            np.where(self._velocity_mode, duty_velocity, duty_position), -MAX_DUTY, MAX_DUTY
+        )
+        # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft; torque off: coasting.
+        tau = np.where(on, self._kt * (duty * self._volts - self._kt * w) / self._resistance, 0.0)
+        self._torque = tau
+        return tau
 
     def _current(self, servo: ServoView, t: float) -> float:
         """Present Current (A), or for the MX-28 its Present Load as a fraction of stall."""
         j = self.by_servo[servo.id]
-        amps = j.torque / j.kt
+        amps = float(self._torque[j.index]) / j.kt
         return amps if j.amps_unit is not None else amps / j.stall_current
 
     # ----------------------------------------------------------------- sensors
@@ -390,7 +409,7 @@ class SimWorld:
 
     def electric_power(self) -> float:
         """Σ V·I over the servos, W: what the supply gives the motors now."""
-        return sum(abs(j.torque / j.kt) * j.servo.input_voltage_v for j in self.joints)
+        return float(np.sum(np.abs(self._torque / self._kt) * self._volts))
 
     def state_hash(self) -> str:
         """A hash of the world's full state: equal runs give equal hashes, bit for bit."""
