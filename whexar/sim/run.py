@@ -37,7 +37,7 @@ from whexar.runtime.messages import Event
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sim.model import load_model
-from whexar.sim.terrain import Terrain
+from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
 from whexar.testing.harness import Harness, RunResult, run_actors
 
@@ -46,7 +46,8 @@ SAMPLE_PERIOD_S: Final = 0.05
 FALLEN_TILT_RAD: Final = math.radians(60.0)
 """A body tilted further than this has fallen."""
 IMU_ADDRESS: Final = 0x6B
-_names = itertools.count()
+DEVICE_NAME: Final = "sim"
+"""The name the run's servo chain, board and IMU bus are registered under."""
 
 
 @dataclass(frozen=True)
@@ -229,13 +230,17 @@ def simulate(
     i2c.attach(cfg.imu.address, chip)
     world = SimWorld(model, chain, cfg=cfg, board=board, imu=chip)
     x0, y0, yaw0 = start
-    half = yaw0 / 2
+    seat = cfg.locomotion.sit_height_mm / 1000 + 0.002
+    # Seated on the ground where the start is: parallel to a slope, turned by the yaw.
+    (bx, by, bz), (qw, qx, qy, qz) = (terrain.ground if terrain else Floor()).start_pose(seat)
+    cy, sy = math.cos(yaw0 / 2), math.sin(yaw0 / 2)
     world.set_pose(
         seated_angles(cfg),
-        base_xyz=(x0, y0, cfg.locomotion.sit_height_mm / 1000 + 0.002),
-        base_quat=(math.cos(half), 0.0, 0.0, math.sin(half)),
+        base_xyz=(bx + x0, by + y0, bz),
+        # q_yaw ⊗ q_floor: the floor's tilt, then the turn about the world's vertical.
+        base_quat=(cy * qw - sy * qz, cy * qx - sy * qy, cy * qy + sy * qx, cy * qz + sy * qw),
     )
-    name = f"sim{next(_names)}"
+    name = DEVICE_NAME  # one run per process at a time; the same name keeps logs comparable
     samples: list[Sample] = []
     power = [0.0]
 

@@ -1,0 +1,161 @@
+"""The world behind the servo emulator: the servo law against the motor law, determinism,
+and the robot standing, walking, climbing and riding on the full runtime."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from whexar.bus.control_table import CENTER_TICKS
+from whexar.bus.emulator.chain import ServoChain
+from whexar.config import RobotConfig
+from whexar.sim.model import load_model
+from whexar.sim.motors import MAX_DUTY, MOTORS, TICKS_PER_RAD, position_duty_per_rad
+from whexar.sim.run import SimResult, seated_angles, simulate
+from whexar.sim.terrain import slope
+from whexar.sim.world import SimWorld, fsr_counts
+from whexar.testing.walk import command
+
+CFG = RobotConfig()
+FEMUR = 3  # servo ID of RF's femur (eq. 4.1), an MX-106
+
+
+def _held_world() -> tuple[SimWorld, ServoChain, mujoco.MjModel]:
+    """The robot in the air without gravity, its body held still, every servo holding."""
+    model = load_model(CFG)
+    model.opt.gravity[:] = 0.0
+    model.dof_armature[0:6] = 1e9  # the body does not move
+    chain = ServoChain.for_models(CFG.servos(), baudrate=CFG.bus.baudrate)
+    world = SimWorld(model, chain, cfg=CFG)
+    world.set_pose(seated_angles(CFG), base_xyz=(0.0, 0.0, 1.0))
+    for servo in chain.servos.values():
+        servo.set_register("goal_position", round(servo.position))
+        servo.set_register("torque_enable", 1)
+    return world, chain, model
+
+
+def test_a_position_step_follows_the_motor_law() -> None:
+    """A 0.5 rad step of an MX-106: the world's joint against an independent integration of
+    the law it implements (profile at the Velocity Limit, duty = KPP·error clipped to
+    96 %, τ = kt·V/R − kt²·ω/R, friction and armature)."""
+    world, chain, model = _held_world()
+    servo = chain.servos[FEMUR]
+    joint = world.by_servo[FEMUR]
+    q0 = world.q[joint.index]
+    servo.set_register("goal_position", round((q0 + 0.5) * TICKS_PER_RAD + CENTER_TICKS))
+    motor = MOTORS["MX-106"]
+    kp = position_duty_per_rad(850)
+    vmax = servo.drive.max_velocity / TICKS_PER_RAD
+    full = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, world.data, full)
+    inertia = float(full[joint.dadr, joint.dadr])  # the leg beyond it and the armature
+    volts = servo.input_voltage_v
+    # The reference: the same law, integrated finely on its own.
+    h = 1e-5
+    q, w, desired = q0, 0.0, q0
+    reference = {}
+    for k in range(1, round(0.3 / h) + 1):
+        desired += max(-vmax * h, min(vmax * h, q0 + 0.5 - desired))
+        duty = max(-MAX_DUTY, min(MAX_DUTY, kp * (desired - q)))
+        tau = motor.kt * (duty * volts - motor.kt * w) / motor.resistance
+        tau -= motor.viscous * w + motor.coulomb * math.tanh(w / 1e-3)
+        w += tau / inertia * h
+        q += w * h
+        if k % 1000 == 0:
+            reference[round(k * h, 3)] = q - q0
+    got = {}
+    for k in range(1, 31):
+        t = k * 0.01
+        for s in chain.servos.values():
+            s.advance(t)
+        got[round(t, 3)] = world.q[joint.index] - q0
+    for t in (0.02, 0.05, 0.1, 0.2, 0.3):
+        assert got[t] == pytest.approx(reference[t], abs=0.02), (t, got[t], reference[t])
+    # It got there: within a few mrad of the goal, the motor no longer saturated.
+    assert got[0.3] == pytest.approx(0.5, abs=0.01)
+    # Present Current is the motor's torque over kt.
+    amps = servo.register_value("present_current") * 3.36e-3
+    assert abs(amps) < 0.5
+
+
+def test_present_current_is_the_motor_torque_over_kt() -> None:
+    world, chain, _ = _held_world()
+    servo = chain.servos[FEMUR]
+    joint = world.by_servo[FEMUR]
+    q0 = world.q[joint.index]
+    servo.set_register("goal_position", round((q0 + 1.0) * TICKS_PER_RAD + CENTER_TICKS))
+    for k in range(1, 21):
+        for s in chain.servos.values():
+            s.advance(k * 0.002)
+    k = joint.index
+    torque = float(world._torque[k])
+    motor = MOTORS["MX-106"]
+    # The torque of the last step, from the state that step started from.
+    duty = position_duty_per_rad(850) * (float(world._desired[k]) - world.q[k])
+    assert abs(duty) > MAX_DUTY  # 40 ms into a 1 rad step: saturated
+    assert abs(torque) <= motor.stall_torque(servo.input_voltage_v) * MAX_DUTY
+    current = world._current(servo, 0.0)
+    assert current == pytest.approx(torque / motor.kt, rel=1e-9)
+    # The bus reads it in 3.36 mA units (MX-106 Present Current, e-manual).
+    assert servo.register_value("present_current") == round(current / 3.36e-3)
+
+
+def test_the_force_sensor_divider() -> None:
+    assert fsr_counts(0.0) == 0
+    weight = CFG.robot.mass_kg * 9.81 / 6
+    assert CFG.fsr.contact_on_counts < fsr_counts(weight) < 1023
+    assert fsr_counts(1.0) < CFG.fsr.contact_off_counts
+
+
+@functools.cache
+def flat_walk() -> SimResult:
+    return simulate(commands=[(4.0, command(vx_m_s=0.08))], duration=12.0)
+
+
+def test_the_same_run_gives_the_same_state_bit_for_bit() -> None:
+    a = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0)
+    b = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0)
+    assert a.world.state_hash() == b.world.state_hash()
+    assert a.run.log.digest() == b.run.log.digest()
+
+
+def _steady(result: SimResult, start: float) -> list[float]:
+    return [s.x for s in result.samples if start <= s.t <= result.duration_s]
+
+
+def test_it_stands_up_and_walks_on_the_flat_without_falling() -> None:
+    r = flat_walk()
+    summary = r.summary()
+    assert summary["falls"] == 0
+    standing = [s for s in r.samples if 3.0 <= s.t <= 3.9]
+    assert all(s.z == pytest.approx(0.29, abs=0.01) for s in standing)  # the default stance
+    walking = [s for s in r.samples if 7.0 <= s.t <= 12.0]
+    speed = (walking[-1].x - walking[0].x) / (walking[-1].t - walking[0].t)
+    assert speed == pytest.approx(0.08, rel=0.15)
+    assert max(abs(s.roll) for s in walking) < math.radians(3)
+    assert max(abs(s.pitch) for s in walking) < math.radians(3)
+    assert abs(walking[-1].y) < 0.05
+
+
+def test_it_walks_up_a_15_degree_ramp_without_falling() -> None:
+    r = simulate(terrain=slope(15), commands=[(4.0, command(vx_m_s=0.06))], duration=12.0)
+    assert r.summary()["falls"] == 0
+    late = [s for s in r.samples if 6.0 <= s.t <= 12.0]
+    assert late[-1].x - late[0].x > 0.15  # uphill, along the slope
+    assert all(s.pitch == pytest.approx(-math.radians(15), abs=math.radians(3)) for s in late)
+
+
+def test_it_rides_2_m() -> None:
+    r = simulate(commands=[(3.0, command(mode="ride", vx_m_s=0.15))], duration=19.0)
+    assert r.summary()["falls"] == 0
+    end = [s for s in r.samples if s.t <= 19.0][-1]
+    assert end.x > 2.0
+    assert abs(end.y) < 0.06  # straight: under 2 % sideways
+    rolling = [s for s in r.samples if 8.0 <= s.t <= 18.0]
+    speed = (rolling[-1].x - rolling[0].x) / (rolling[-1].t - rolling[0].t)
+    assert speed == pytest.approx(0.15, rel=0.03)  # the wheels roll without slipping
+    _ = np.array([s.z for s in rolling])
