@@ -55,8 +55,12 @@ from whexar.bus.emulator.dynamics import VELOCITY_MODE, Drive, Motion, ServoView
 from whexar.bus.emulator.servo import VirtualServo
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES
-from whexar.sensors.board_emulator import SensorBoardEmulator, counts_for_distance
-from whexar.sensors.frame import FSR_KEYS, IR_KEYS
+from whexar.sensors.board_emulator import (
+    SensorBoardEmulator,
+    counts_for_acceleration,
+    counts_for_distance,
+)
+from whexar.sensors.frame import ACC_KEYS, FSR_KEYS, IR_KEYS
 from whexar.sensors.imu_emulator import FakeLsm9ds1
 from whexar.sim.motors import MAX_DUTY, MOTORS, PWM_LIMIT, TICKS_PER_RAD, position_duty_per_rad
 
@@ -152,6 +156,8 @@ class SimWorld:
         self.time = 0.0
         self._sensed_at = -math.inf
         self._imu_v = np.zeros(3)
+        self.accel_g: tuple[float, float, float] = (0.0, 0.0, 1.0)
+        """The specific force at the IMU site in g, in the sensors' axes."""
         self._imu_t = 0.0
         self.joints: list[_Joint] = []
         self.by_servo: dict[int, _Joint] = {}
@@ -370,7 +376,7 @@ class SimWorld:
                 counts_for_distance(max(dist, ir.min_distance_mm / 1000), ir.k_cm, ir.exponent)
             )
         self.ir_counts = counts
-        if self.imu is not None:
+        if self.imu is not None or self.board is not None:
             # The chip's filter: the mean acceleration since the last reading (the change of
             # velocity over the period), not one step's contact spikes, which a sample
             # every 20 ms would alias into tilt.
@@ -385,12 +391,19 @@ class SimWorld:
             fx, fy, fz = (float(a) / STANDARD_G for a in force)
             wx, wy, wz = (math.degrees(float(w)) for w in gyro)
             # Mounted with its x axis to the body's left, y to the rear (module docstring).
-            self.imu.accel_g = (fy, -fx, fz)
-            self.imu.gyro_dps = (wy, -wx, wz)
+            self.accel_g = (fy, -fx, fz)
+            if self.imu is not None:
+                self.imu.accel_g = self.accel_g
+                self.imu.gyro_dps = (wy, -wx, wz)
 
     def _board_inputs(self, board_t: float) -> dict[str, int]:
         counts = dict(zip(FSR_KEYS, self.fsr_counts, strict=True))
         counts.update(zip(IR_KEYS, self.ir_counts, strict=True))
+        if self.board is not None and self.board.accelerometer:
+            # The board's analog accelerometer, mounted as the IMU (the same axes).
+            acc = self.cfg.sensor_board.accelerometer
+            raw = counts_for_acceleration(self.accel_g, acc.zero_g_counts, acc.counts_per_g)
+            counts.update(zip(ACC_KEYS, raw, strict=True))
         return counts
 
     # ----------------------------------------------------------------- read-outs
