@@ -292,9 +292,11 @@ class SimWorld:
             )
             self._vmax[k] = drive.max_velocity / TICKS_PER_RAD
             self._amax[k] = drive.max_acceleration / TICKS_PER_RAD
-            self._kp[k] = position_duty_per_rad(s.register_value("position_p_gain"))
-            self._kvp[k] = s.register_value("velocity_p_gain") / KVP_DIVISOR
-            self._kvi[k] = s.register_value("velocity_i_gain") / KVI_DIVISOR
+            # Read from the table as the firmware does, without refreshing the present values.
+            table, reg = s.table, s.model.register
+            self._kp[k] = position_duty_per_rad(reg("position_p_gain").decode(table))
+            self._kvp[k] = reg("velocity_p_gain").decode(table) / KVP_DIVISOR
+            self._kvi[k] = reg("velocity_i_gain").decode(table) / KVI_DIVISOR
             self._volts[k] = s.input_voltage_v
             if not drive.torque:
                 self._integral[k] = 0.0
