@@ -6,6 +6,8 @@
 * :mod:`~whexar.cli.bus` — ``whexar emulate``, ``whexar bus scan``;
 * :mod:`~whexar.cli.sensors` — ``whexar sensors``: the sensor-board monitor;
 * :mod:`~whexar.cli.bench` — ``whexar bench kin | runtime | bus | sensors``;
+* :mod:`~whexar.cli.model` — ``whexar model --mjcf | --urdf``: the simulation model;
+* :mod:`~whexar.cli.sim` — ``whexar sim``: the simulated WHexaR on a scenario;
 * :mod:`~whexar.cli.common` — what they share.
 
 A group adds its commands with ``add_commands(commands)``; each command
@@ -25,7 +27,7 @@ import sys
 from collections.abc import Sequence
 
 from whexar import __version__
-from whexar.cli import bench, bus, config, kin, run, sensors
+from whexar.cli import bench, bus, config, kin, model, run, sensors, sim
 from whexar.cli.common import Handler
 from whexar.errors import ConfigError, UsageError
 
@@ -37,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"whexar {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in (config, kin, bench, run, bus, sensors):
+    for group in (config, kin, bench, run, bus, sensors, model, sim):
         group.add_commands(commands)
     return parser
 

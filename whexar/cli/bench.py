@@ -29,6 +29,7 @@ SUITES: dict[str, str] = {
     "bus": "servo bus cycle rates per read plan, CPU per cycle, real time over a pty",
     "sensors": "sensor frame decoding speed and frame-to-message latency (real time)",
     "cycle": "CPU per control cycle of the locomotion stack (six legs and the coordinator)",
+    "sim": "the simulated WHexaR against real time; CPU per bus cycle by part",
 }
 """The suites, each a module of :mod:`whexar.bench` with a ``run(progress)``."""
 

@@ -1,0 +1,283 @@
+"""``whexar sim``: run the simulated WHexaR on a scenario; summary, report, video, viewer.
+
+The scenario (``--scenario``, a built-in name or a TOML file; default
+``course``) is checked whole before anything runs: a bad one prints every
+problem and exits with status 1, like ``whexar config check``. Then the full
+runtime drives the MuJoCo world on virtual time (:mod:`whexar.sim.run`).
+
+While it runs, one progress line on stderr is redrawn in place (``\\r``):
+simulated time, position, speed over the last second, what the scenario's
+commands have asked for so far (mode, gait), the latest command and, when the
+body tilts past 60°, FALLEN. The runtime's own state is not visible from
+outside a run, so the line shows the command timeline, not the coordinator's
+activity; the report's gait diagram has the activity. When stderr is no
+terminal, a line is printed every 10 s of simulated time instead.
+
+At the end: the summary as text, or with ``--json`` one JSON object with
+exactly :data:`SUMMARY_KEYS`. ``--report DIR`` writes the plots and tables
+(:mod:`whexar.sim.report`), ``--video FILE.mp4`` renders the run headless
+(:mod:`whexar.sim.video`), ``--view`` shows it in MuJoCo's viewer, paced to
+real time, where a display exists.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import os
+import shutil
+import sys
+import time
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+from whexar.cli.common import Commands, print_json, seconds
+from whexar.errors import ConfigError, UsageError
+
+if TYPE_CHECKING:
+    from whexar.sim.run import Sample
+    from whexar.sim.scenario import Scenario
+    from whexar.sim.world import SimWorld
+
+SUMMARY_KEYS: Final = (
+    "distance_m",
+    "mean_speed_mps",
+    "energy_j",
+    "cost_of_transport",
+    "min_stability_margin_m",
+    "gait_changes",
+    "falls",
+    "sim_seconds",
+    "wall_seconds",
+    "realtime_factor",
+    "state_hash",
+)
+"""The keys of ``whexar sim --json``, in order."""
+CLEAR_LINE: Final = "\r\x1b[K"
+REDRAW_S: Final = 0.1
+"""Shortest wall time between two redraws of the progress line."""
+LOG_EVERY_S: Final = 10.0
+"""Simulated seconds between two progress lines when stderr is no terminal."""
+FALLEN_TILT_RAD: Final = math.radians(60.0)
+
+
+def _seed(value: str) -> int:
+    try:
+        number = int(value)
+    except ValueError:
+        number = -1
+    if number < 0:
+        raise argparse.ArgumentTypeError(f"{value!r}: expected an integer ≥ 0")
+    return number
+
+
+class Progress:
+    """The live progress line: an ``on_sample`` callback writing to ``stream``."""
+
+    def __init__(self, scenario: Scenario, stream: Any = None) -> None:
+        from whexar.sim.scenario import describe_command
+
+        self.stream = stream if stream is not None else sys.stderr
+        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.timeline = [(t, cmd, describe_command(cmd)) for t, cmd in scenario.commands]
+        self.duration = scenario.duration_s
+        self.mode = "walk"
+        self.gait: str = scenario.config.locomotion.gait
+        self.latest = "standing up"
+        self._k = 0
+        self._recent: deque[Sample] = deque()
+        self._drawn_at = -math.inf
+        self._logged_at = -math.inf
+        self._wall = time.perf_counter()
+
+    def __call__(self, sample: Sample, world: SimWorld) -> None:
+        """Take one sample; redraw the line when it is due."""
+        while self._k < len(self.timeline) and self.timeline[self._k][0] <= sample.t + 1e-9:
+            _, cmd, label = self.timeline[self._k]
+            self.mode = cmd.mode or self.mode
+            self.gait = cmd.gait or self.gait
+            self.latest = f"t={self.timeline[self._k][0]:g}: {label}"
+            self._k += 1
+        self._recent.append(sample)
+        while self._recent and self._recent[0].t < sample.t - 1.0:
+            self._recent.popleft()
+        if self.live:
+            now = time.perf_counter()
+            if now - self._drawn_at >= REDRAW_S:
+                self._drawn_at = now
+                # A line that wraps cannot be redrawn in place: keep it within the terminal.
+                width = shutil.get_terminal_size().columns - 1
+                self._write(CLEAR_LINE + self.line(sample)[:width])
+        elif sample.t - self._logged_at >= LOG_EVERY_S:
+            self._logged_at = sample.t
+            self._write(self.line(sample) + "\n")
+
+    def line(self, s: Sample) -> str:
+        """The progress line for sample ``s``."""
+        first = self._recent[0] if self._recent else s
+        dt = s.t - first.t
+        speed = math.hypot(s.x - first.x, s.y - first.y) / dt if dt > 0 else 0.0
+        fallen = "  FALLEN" if max(abs(s.roll), abs(s.pitch)) > FALLEN_TILT_RAD else ""
+        rtf = s.t / max(1e-9, time.perf_counter() - self._wall)
+        return (
+            f"t {s.t:6.1f}/{self.duration:g} s  x {s.x:+6.2f} y {s.y:+6.2f} m  "
+            f"{speed:4.2f} m/s  {self.mode}/{self.gait}  {rtf:4.1f}x  [{self.latest}]{fallen}"
+        )
+
+    def finish(self) -> None:
+        """End the live line so that what follows starts on a fresh one."""
+        if self.live:
+            self._write(CLEAR_LINE)
+
+    def _write(self, text: str) -> None:
+        with contextlib.suppress(OSError):  # a terminal that went away costs the line only
+            self.stream.write(text)
+            self.stream.flush()
+
+
+class Viewer:
+    """MuJoCo's passive viewer on the running world, paced to real time."""
+
+    def __init__(self) -> None:
+        self._handle: Any = None
+        self._start = 0.0
+        self._t0 = 0.0
+
+    def __call__(self, sample: Sample, world: SimWorld) -> None:
+        """Show the world at this sample; sleep until real time catches up."""
+        import mujoco.viewer
+
+        if self._handle is None:
+            self._handle = mujoco.viewer.launch_passive(world.model, world.data)
+            self._start, self._t0 = time.perf_counter(), sample.t
+        if not self._handle.is_running():
+            return
+        self._handle.sync()
+        ahead = (sample.t - self._t0) - (time.perf_counter() - self._start)
+        if ahead > 0:
+            time.sleep(ahead)
+
+    def close(self) -> None:
+        """Close the window."""
+        if self._handle is not None:
+            self._handle.close()
+
+
+def _callbacks(*found: Callable[[Sample, SimWorld], None] | None) -> Callable[..., None]:
+    callbacks = [c for c in found if c is not None]
+
+    def each(sample: Sample, world: SimWorld) -> None:
+        for c in callbacks:
+            c(sample, world)
+
+    return each
+
+
+def summary_text(name: str, summary: dict[str, Any]) -> str:
+    """The summary for the terminal: one figure a line, with units."""
+    from whexar.sim.report import FIGURES, format_figure
+
+    lines = [f"whexar sim: {name}"]
+    for key in SUMMARY_KEYS:
+        label = FIGURES[key][0]
+        value = summary.get(key)
+        shown = str(value) if key == "state_hash" else format_figure(key, value)
+        lines.append(f"  {label:<28}{shown}")
+    return "\n".join(lines)
+
+
+def _sim(args: argparse.Namespace) -> int:
+    from whexar.sim.scenario import load_scenario
+
+    if args.view and args.video:
+        raise UsageError("--view and --video need different OpenGL back ends: choose one")
+    if args.view and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UsageError(
+            "--view needs a display (DISPLAY is not set); "
+            "render the run with --video FILE.mp4 instead"
+        )
+    try:
+        scenario = load_scenario(args.scenario)
+    except ConfigError as exc:
+        count = len(exc.problems)
+        print(f"{exc.source}: {count} problem{'s' if count != 1 else ''}", file=sys.stderr)
+        for problem in exc.problems:
+            print(f"  {problem}", file=sys.stderr)
+        return 1
+    scenario = scenario.with_overrides(duration_s=args.duration, seed=args.seed)
+    recorder = None
+    if args.video is not None:
+        from whexar.sim.video import VideoRecorder, select_gl
+
+        select_gl()  # before the world imports mujoco: its OpenGL back end is chosen then
+        recorder = VideoRecorder(args.video)
+    viewer = Viewer() if args.view else None
+    progress = Progress(scenario)
+    try:
+        result = scenario.run(on_sample=_callbacks(progress, recorder, viewer))
+    finally:
+        progress.finish()
+        if recorder is not None:
+            recorder.close()
+        if viewer is not None:
+            viewer.close()
+    summary = result.summary()
+    if args.report is not None:
+        from whexar.sim.report import write_report
+
+        written = write_report(
+            result,
+            args.report,
+            commands=scenario.commands,
+            name=scenario.name,
+            description=scenario.description,
+        )
+        print(f"report: {len(written)} files in {args.report}/", file=sys.stderr)
+    if recorder is not None:
+        print(
+            f"video: {args.video} ({recorder.frames} frames; rendering them is in the wall time)",
+            file=sys.stderr,
+        )
+    if args.json:
+        from whexar.sim.report import json_safe
+
+        print_json(json_safe({key: summary.get(key) for key in SUMMARY_KEYS}))
+    else:
+        print(summary_text(scenario.name, summary))
+    return 0
+
+
+def add_commands(commands: Commands) -> None:
+    """Add this group's commands to the ``whexar`` command table."""
+    sim = commands.add_parser(
+        "sim",
+        help="run the simulated WHexaR (MuJoCo) on a scenario",
+        description="Run the full runtime against the simulated WHexaR on a scenario "
+        "(config/scenarios/*.toml): a summary, and optionally plots, a video, the viewer.",
+    )
+    sim.add_argument(
+        "--scenario",
+        default="course",
+        metavar="NAME|FILE",
+        help="a built-in scenario (course, obstacles, slope, wheels) or a TOML file; "
+        "default: course",
+    )
+    sim.add_argument(
+        "--duration", type=seconds, metavar="S", help="simulated seconds (default: the scenario's)"
+    )
+    sim.add_argument(
+        "--seed",
+        type=_seed,
+        metavar="N",
+        help="seed of the scenario's random terrain features (default: the scenario's)",
+    )
+    sim.add_argument("--report", type=Path, metavar="DIR", help="write PNG plots and a summary")
+    sim.add_argument("--video", type=Path, metavar="FILE.mp4", help="render the run (H.264)")
+    sim.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    sim.add_argument(
+        "--view", action="store_true", help="watch it in MuJoCo's viewer (needs a display)"
+    )
+    sim.set_defaults(handler=_sim)

@@ -1,0 +1,589 @@
+"""The report of a simulated run: PNG plots, ``summary.json`` and ``summary.md``.
+
+Theory of operation
+-------------------
+:func:`write_report` turns a :class:`~whexar.sim.run.SimResult` into a folder:
+
+* ``path.png`` — the body's path seen from above, coloured by time, over the
+  footprints of the terrain's obstacles (read from the MuJoCo model: every
+  box and ball that is not the robot's);
+* ``gait.png`` — the gait diagram (thesis Fig. 3.3): a bar for every leg
+  while :class:`~whexar.actors.messages.LegState` says ``swing``, over a band
+  of the coordinator's activity (:class:`~whexar.actors.messages.LocomotionState`);
+* ``joints.png`` — goal against present angle of leg 0's (RF) coxa, femur,
+  tibia and tarsus (Fig. 6.2): goals from the :class:`JointGoals` that leg
+  sends, present angles from the bus's :class:`ServoStates`;
+* ``current.png`` — current per leg: the sum of |Present Current| of the
+  leg's servos in each bus cycle (the ``default`` read plan reads the current
+  of the five positioning joints only, so the wheel and its direction servo
+  are missing from it);
+* ``cot.png`` — cost of transport per segment, CoT = E / (m g d), and mean
+  electric power, the segments split at the scenario's command times (one
+  segment per command; :func:`segments`).
+
+Everything is plotted from the message log and the samples; nothing is run
+again. matplotlib draws with its Agg backend (no display).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+
+from whexar.actors.messages import (
+    JointGoals,
+    LegState,
+    LocomotionState,
+    MotionCommand,
+    ServoStates,
+)
+from whexar.robot import JOINT_NAMES, LEG_NAMES
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from whexar.sim.run import Sample, SimResult
+
+G: Final = 9.81
+PLOTTED_JOINTS: Final = (0, 2, 3, 4)
+"""Leg 0's joints in the goal/present plot: coxa, femur, tibia, tarsus (Fig. 6.2)."""
+MIN_SEGMENT_DISTANCE_M: Final = 0.1
+MIN_SEGMENT_SPEED_M_S: Final = 0.02
+"""A segment shorter than this, or slower on average, has no cost of transport: it stands
+(sways, sits down) rather than travels, and E/(m g d) of a few centimetres is noise."""
+DPI: Final = 110
+_ROBOT_GEOM_GROUP: Final = 3
+"""The geom group :class:`~whexar.sim.world.SimWorld` moves the robot's geoms to."""
+_ACTIVITY_COLOURS: Final = {
+    "seated": "#bbbbbb",
+    "standing_up": "#d9c9a3",
+    "sitting_down": "#d9c9a3",
+    "standing": "#e8e8e8",
+    "walking": "#a6cee3",
+    "riding": "#b2df8a",
+    "hybrid": "#cab2d6",
+    "transition": "#fdbf6f",
+    "flipping": "#fb9a99",
+}
+_JOINT_KEYS: Final = ("coxa", "femur", "tibia", "tarsus")
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One stretch of the run: from ``t0`` to ``t1`` s, doing ``label``."""
+
+    t0: float
+    t1: float
+    label: str
+    distance_m: float
+    energy_j: float
+    cost_of_transport: float | None
+    """E / (m g d); ``None`` when it hardly moved (:data:`MIN_SEGMENT_SPEED_M_S`)."""
+
+    @property
+    def mean_power_w(self) -> float:
+        """Mean electric power over the segment."""
+        return self.energy_j / (self.t1 - self.t0) if self.t1 > self.t0 else 0.0
+
+
+def _travel(samples: Sequence[Sample], t0: float, t1: float) -> tuple[float, float]:
+    """Distance (m) and energy (J) over the samples in [t0, t1]."""
+    inside = [s for s in samples if t0 - 1e-9 <= s.t <= t1 + 1e-9]
+    distance = sum(math.hypot(b.x - a.x, b.y - a.y) for a, b in itertools.pairwise(inside))
+    energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(inside))
+    return distance, energy
+
+
+def segments(
+    samples: Sequence[Sample],
+    commands: Sequence[tuple[float, MotionCommand]],
+    mass_kg: float,
+    *,
+    every_s: float = 10.0,
+) -> list[Segment]:
+    """The run split at the command times (commands at one time make one segment).
+
+    Without commands it is split every ``every_s`` seconds. The stretch before
+    the first command is labelled ``"start"`` (the robot stands up there).
+    """
+    from whexar.sim.scenario import describe_command
+
+    if not samples:
+        return []
+    end = samples[-1].t
+    cuts: list[tuple[float, str]] = []
+    if commands:
+        by_time: dict[float, list[str]] = {}
+        for t, cmd in commands:
+            if t < end:
+                by_time.setdefault(t, []).append(describe_command(cmd))
+        cuts = [(t, ", ".join(labels)) for t, labels in sorted(by_time.items())]
+        if not cuts or cuts[0][0] > samples[0].t:
+            cuts.insert(0, (samples[0].t, "start"))
+    else:
+        n = max(1, math.ceil(end / every_s))
+        cuts = [
+            (k * every_s, f"{k * every_s:g}–{min(end, (k + 1) * every_s):g} s") for k in range(n)
+        ]
+    out: list[Segment] = []
+    for (t0, label), nxt in itertools.zip_longest(cuts, cuts[1:]):
+        t1 = end if nxt is None else nxt[0]
+        if t1 <= t0:
+            continue
+        distance, energy = _travel(samples, t0, t1)
+        travels = distance >= max(MIN_SEGMENT_DISTANCE_M, MIN_SEGMENT_SPEED_M_S * (t1 - t0))
+        cot = energy / (mass_kg * G * distance) if travels else None
+        out.append(Segment(t0, t1, label, distance, energy, cot))
+    return out
+
+
+# --------------------------------------------------------------------------- data from the log
+
+
+def swing_intervals(result: SimResult) -> dict[int, list[tuple[float, float]]]:
+    """Per leg, the (start, end) times it was in swing, from its LegState messages."""
+    out: dict[int, list[tuple[float, float]]] = {leg: [] for leg in range(len(LEG_NAMES))}
+    started: dict[int, float] = {}
+    last_t = 0.0
+    for m in result.run.log.messages("legs", of=LegState):
+        last_t = m.t
+        if m.phase == "swing":
+            started.setdefault(m.leg, m.t)
+        elif m.leg in started:
+            out[m.leg].append((started.pop(m.leg), m.t))
+    for leg, t0 in started.items():
+        out[leg].append((t0, last_t))
+    return out
+
+
+def activity_intervals(result: SimResult) -> list[tuple[float, float, str]]:
+    """(start, end, activity) of the coordinator, from its LocomotionState messages."""
+    states = result.run.log.messages("locomotion", of=LocomotionState)
+    out: list[tuple[float, float, str]] = []
+    for m in states:
+        if out and out[-1][2] == m.activity:
+            out[-1] = (out[-1][0], m.t, m.activity)
+        else:
+            if out:
+                out[-1] = (out[-1][0], m.t, out[-1][2])
+            out.append((m.t, m.t, m.activity))
+    return out
+
+
+def joint_traces(
+    result: SimResult, leg: int = 0
+) -> dict[int, tuple[list[tuple[float, float]], list[tuple[float, float]]]]:
+    """For each of :data:`PLOTTED_JOINTS`: (goals, present) as (t, rad) lists."""
+    source = f"leg-{LEG_NAMES[leg]}"
+    goals: dict[int, list[tuple[float, float]]] = {j: [] for j in PLOTTED_JOINTS}
+    present: dict[int, list[tuple[float, float]]] = {j: [] for j in PLOTTED_JOINTS}
+    for msg in result.run.log.messages("goals", of=JointGoals):
+        if msg.source != source:
+            continue
+        for g in msg.goals:
+            if g.leg == leg and g.joint in goals and g.position_rad is not None:
+                goals[g.joint].append((msg.t, g.position_rad))
+    for states in result.run.log.messages("servo-state", of=ServoStates):
+        for js in states.joints:
+            if js.leg == leg and js.joint in present and js.position_rad is not None:
+                present[js.joint].append((states.t, js.position_rad))
+    return {j: (goals[j], present[j]) for j in PLOTTED_JOINTS}
+
+
+def leg_currents(result: SimResult) -> tuple[list[float], np.ndarray]:
+    """Bus cycle times and, per cycle and leg, Σ |Present Current| of the leg's servos (A)."""
+    times: list[float] = []
+    rows: list[list[float]] = []
+    for states in result.run.log.messages("servo-state", of=ServoStates):
+        row = [0.0] * len(LEG_NAMES)
+        for js in states.joints:
+            if js.current_a is not None:
+                row[js.leg] += abs(js.current_a)
+        times.append(states.t)
+        rows.append(row)
+    return times, np.array(rows, dtype=float).reshape(-1, len(LEG_NAMES))
+
+
+# --------------------------------------------------------------------------- plots
+
+
+def _figure(width: float, height: float, rows: int = 1, **kw: Any) -> tuple[Figure, Any]:
+    import matplotlib
+
+    matplotlib.use("Agg")  # no display: draw into memory, save as PNG
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(rows, 1, figsize=(width, height), **kw)
+    return fig, axes
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def _hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Convex hull (Andrew's monotone chain): the footprint of a tilted box's corners."""
+    pts = sorted(set(points))
+    if len(pts) < 3:
+        return pts
+
+    def cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list[tuple[float, float]] = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list[tuple[float, float]] = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return lower[:-1] + upper[:-1]
+
+
+@dataclass(frozen=True)
+class _Shape:
+    """The footprint of one terrain geom: a polygon, or a circle (centre and radius)."""
+
+    label: str
+    colour: str
+    points: tuple[tuple[float, float], ...]
+    radius: float = 0.0
+
+
+def _terrain_shapes(result: SimResult) -> list[_Shape]:
+    """Footprints of the terrain's boxes and balls (not the robot's, not the ground's slabs)."""
+    import mujoco
+
+    model, data = result.world.model, result.world.data
+    colours = {"ramp": "#9ecae1", "step": "#c6dbef", "rock": "#969696", "block": "#a6761d"}
+    out: list[_Shape] = []
+    for g in range(model.ngeom):
+        if int(model.geom_group[g]) == _ROBOT_GEOM_GROUP:
+            continue
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+        kind = name.rsplit("_", 1)[0]
+        free = int(model.geom_bodyid[g]) != 0  # a free block has a body of its own
+        label = "free block" if free else kind
+        colour = "#ff7f00" if free else colours.get(kind, "#bdbdbd")
+        gtype = int(model.geom_type[g])
+        size = model.geom_size[g]
+        centre = data.geom_xpos[g]
+        if gtype == mujoco.mjtGeom.mjGEOM_BOX and max(size[:2]) <= 10.0:  # not ground slabs
+            rot = data.geom_xmat[g].reshape(3, 3)
+            corners = [
+                (float(p[0]), float(p[1]))
+                for signs in itertools.product((-1, 1), repeat=3)
+                for p in [centre + rot @ (np.array(signs) * size)]
+            ]
+            out.append(_Shape(label, colour, tuple(_hull(corners))))
+        elif gtype == mujoco.mjtGeom.mjGEOM_SPHERE:
+            point = (float(centre[0]), float(centre[1]))
+            out.append(_Shape(label, colour, (point,), float(size[0])))
+    return out
+
+
+def _bounds(shapes: Sequence[_Shape]) -> tuple[float, float, float, float] | None:
+    """(x0, x1, y0, y1) around every shape, or None."""
+    if not shapes:
+        return None
+    xs = [x + d for s in shapes for x, _ in s.points for d in (-s.radius, s.radius)]
+    ys = [y + d for s in shapes for _, y in s.points for d in (-s.radius, s.radius)]
+    return min(xs), max(xs), min(ys), max(ys)
+
+
+def _draw_terrain(ax: Axes, shapes: Sequence[_Shape]) -> None:
+    from matplotlib.patches import Circle, Polygon
+
+    labelled: set[str] = set()
+    for shape in shapes:
+        shown = shape.label if shape.label not in labelled else None
+        labelled.add(shape.label)
+        style = {"fc": shape.colour, "ec": "#444444", "lw": 0.5, "label": shown}
+        if shape.radius > 0:
+            ax.add_patch(Circle(shape.points[0], shape.radius, **style))
+        else:
+            ax.add_patch(Polygon(shape.points, closed=True, **style))
+
+
+def plot_path(result: SimResult, path: Path, *, title: str = "") -> Path:
+    """The path of the body centre seen from above, over the terrain's obstacles."""
+    s = result.samples
+    xs = np.array([p.x for p in s])
+    ys = np.array([p.y for p in s])
+    ts = np.array([p.t for p in s])
+    # The whole course is shown, where the robot went and where it did not get to.
+    margin = 0.4
+    box = [0.0, 0.0, 0.0, 0.0]
+    if len(s):
+        box = [float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max())]
+    shapes = _terrain_shapes(result)
+    terrain = _bounds(shapes)
+    if terrain is not None:
+        lo_x, hi_x, lo_y, hi_y = terrain
+        box = [min(box[0], lo_x), max(box[1], hi_x), min(box[2], lo_y), max(box[3], hi_y)]
+    x0, x1, y0, y1 = box[0] - margin, box[1] + margin, box[2] - margin, box[3] + margin
+    # The figure takes the course's shape (long and narrow), within reason.
+    fig, ax = _figure(11.0, min(8.0, max(3.5, 9.0 * (y1 - y0) / (x1 - x0) + 1.2)))
+    _draw_terrain(ax, shapes)
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    if len(s):
+        ax.plot(xs, ys, color="#555555", lw=0.8, zorder=2)
+        points = ax.scatter(xs, ys, c=ts, cmap="viridis", s=6, zorder=3)
+        fig.colorbar(points, ax=ax, label="simulated time (s)", fraction=0.04, pad=0.02)
+        ax.plot(xs[0], ys[0], "o", color="#1a9850", ms=8, label="start", zorder=4)
+        ax.plot(xs[-1], ys[-1], "s", color="#d73027", ms=8, label="end", zorder=4)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x (m, along the course)")
+    ax.set_ylabel("y (m, to the left)")
+    ax.set_title(title or "Path of the body centre, seen from above")
+    ax.grid(True, lw=0.3)
+    ax.legend(loc="upper left", fontsize=8, framealpha=0.8)
+    return _save(fig, path)
+
+
+def plot_gait(result: SimResult, path: Path, *, window: tuple[float, float] | None = None) -> Path:
+    """The gait diagram: each leg's swings as bars (Fig. 3.3), the activity as a band."""
+    fig, ax = _figure(11.0, 4.0)
+    swings = swing_intervals(result)
+    n = len(LEG_NAMES)
+    for row, leg in enumerate(range(n)):
+        bars = [(t0, t1 - t0) for t0, t1 in swings[leg]]
+        ax.broken_barh(bars, (n - 1 - row + 0.15, 0.7), color="#1f3b73", zorder=2)
+    for t0, t1, activity in activity_intervals(result):
+        ax.axvspan(t0, t1, color=_ACTIVITY_COLOURS.get(activity, "#ffffff"), lw=0, zorder=0)
+    end = result.samples[-1].t if result.samples else result.duration_s
+    lo, hi = window if window is not None else (0.0, end)
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(0, n)
+    ax.set_yticks([n - 1 - row + 0.5 for row in range(n)])
+    ax.set_yticklabels([f"{LEG_NAMES[leg]} ({leg})" for leg in range(n)])
+    ax.set_xlabel("simulated time (s)")
+    ax.set_title("Gait diagram: dark bars = leg in swing; background = coordinator's activity")
+    from matplotlib.patches import Patch
+
+    seen = dict.fromkeys(a for _, _, a in activity_intervals(result))
+    handles = [Patch(color=_ACTIVITY_COLOURS.get(a, "#ffffff"), label=a) for a in seen]
+    handles.append(Patch(color="#1f3b73", label="swing"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
+    ax.grid(True, axis="x", lw=0.3)
+    return _save(fig, path)
+
+
+def plot_joints(result: SimResult, path: Path, *, leg: int = 0) -> Path:
+    """Goal against present angle of one leg's coxa, femur, tibia and tarsus (Fig. 6.2)."""
+    fig, axes = _figure(11.0, 8.0, rows=len(PLOTTED_JOINTS), sharex=True)
+    traces = joint_traces(result, leg)
+    for ax, joint in zip(axes, PLOTTED_JOINTS, strict=True):
+        goals, present = traces[joint]
+        if goals:
+            t, q = zip(*goals, strict=True)
+            ax.step(t, np.degrees(q), where="post", color="#d95f02", lw=1.0, label="goal")
+        if present:
+            t, q = zip(*present, strict=True)
+            ax.plot(t, np.degrees(q), color="#1b9e77", lw=1.0, label="present")
+        ax.set_ylabel(f"{JOINT_NAMES[joint]} (°)")
+        ax.grid(True, lw=0.3)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[0].set_title(f"Leg {leg} ({LEG_NAMES[leg]}): goal and present joint angles")
+    axes[-1].set_xlabel("simulated time (s)")
+    return _save(fig, path)
+
+
+def plot_currents(result: SimResult, path: Path) -> Path:
+    """Σ |Present Current| of each leg's servos per bus cycle, one row per leg."""
+    n = len(LEG_NAMES)
+    fig, axes = _figure(11.0, 8.0, rows=n, sharex=True, sharey=True)
+    times, amps = leg_currents(result)
+    t = np.array(times)
+    width = 1
+    if len(t) > 1:
+        # A moving mean over 0.25 s: the cycle-to-cycle ripple hides the trend.
+        width = max(1, round(0.25 / float(np.median(np.diff(t)))))
+    kernel = np.ones(width) / width
+    for leg, ax in enumerate(axes):
+        if len(t):
+            ax.plot(t, amps[:, leg], color="#c6dbef", lw=0.5)
+            ax.plot(t, np.convolve(amps[:, leg], kernel, mode="same"), color="#08519c", lw=1.0)
+        ax.set_ylabel(f"{LEG_NAMES[leg]} (A)")
+        ax.grid(True, lw=0.3)
+    axes[0].set_title(
+        "Current per leg: Σ |Present Current| of the leg's servos the bus reads "
+        "(light: every cycle; dark: 0.25 s mean)"
+    )
+    axes[-1].set_xlabel("simulated time (s)")
+    return _save(fig, path)
+
+
+def plot_cot(found: Sequence[Segment], path: Path) -> Path:
+    """Cost of transport and mean electric power per segment."""
+    fig, (top, bottom) = _figure(11.0, 6.5, rows=2, sharex=True)
+    x = np.arange(len(found))
+    cots = [s.cost_of_transport if s.cost_of_transport is not None else 0.0 for s in found]
+    bars = top.bar(x, cots, color="#3182bd")
+    for bar, s in zip(bars, found, strict=True):
+        text = f"{s.cost_of_transport:.1f}" if s.cost_of_transport is not None else "—"
+        top.annotate(
+            text,
+            (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+            ha="center",
+            va="bottom",
+            fontsize=8,
+        )
+    top.set_ylabel("cost of transport E/(m g d)")
+    top.set_title(
+        "Per segment of the run (—: stood rather than travelled, "
+        f"under {100 * MIN_SEGMENT_DISTANCE_M:g} cm or {100 * MIN_SEGMENT_SPEED_M_S:g} cm/s)"
+    )
+    top.grid(True, axis="y", lw=0.3)
+    bottom.bar(x, [s.mean_power_w for s in found], color="#e6550d")
+    bottom.set_ylabel("mean electric power (W)")
+    bottom.grid(True, axis="y", lw=0.3)
+    bottom.set_xticks(x)
+    bottom.set_xticklabels(
+        [f"{s.t0:.1f}–{s.t1:.1f} s\n{s.label}" for s in found], rotation=30, ha="right", fontsize=8
+    )
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------------- the folder
+
+
+FIGURES: Final = {
+    "distance_m": ("distance", "m", "{:.3f}"),
+    "mean_speed_mps": ("mean speed while moving", "m/s", "{:.3f}"),
+    "energy_j": ("electric energy", "J", "{:.0f}"),
+    "cost_of_transport": ("cost of transport", "", "{:.2f}"),
+    "min_stability_margin_m": ("minimum stability margin", "m", "{:.3f}"),
+    "gait_changes": ("gait changes", "", "{}"),
+    "falls": ("falls", "", "{}"),
+    "sim_seconds": ("simulated time", "s", "{:.1f}"),
+    "wall_seconds": ("wall time", "s", "{:.1f}"),
+    "realtime_factor": ("real-time factor", "×", "{:.2f}"),
+    "state_hash": ("state hash", "", "`{:.16}…`"),
+}
+"""The summary's figures: key → (label, unit, format), in the order they are shown."""
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float (a margin of −∞) as ``None``: JSON has no ∞."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def format_figure(key: str, value: object) -> str:
+    """One summary figure as text with its unit (``0.512 m``); ``—`` when there is none."""
+    _, unit, fmt = FIGURES.get(key, (key, "", "{}"))
+    if value is None:
+        return "—"
+    return f"{fmt.format(value)} {unit}".strip()
+
+
+def summary_markdown(
+    summary: dict[str, Any], found: Sequence[Segment], *, title: str = "Simulated run"
+) -> str:
+    """``summary.md``: the figures and the segments as Markdown tables."""
+    lines = [f"# {title}", "", "| figure | value |", "|---|---|"]
+    for key, value in summary.items():
+        if key in FIGURES:
+            lines.append(f"| {FIGURES[key][0]} | {format_figure(key, value)} |")
+    lines += [
+        "",
+        "## Segments",
+        "",
+        "| from (s) | to (s) | command | distance (m) | energy (J) | mean power (W) | CoT |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for s in found:
+        cot = f"{s.cost_of_transport:.2f}" if s.cost_of_transport is not None else "—"
+        lines.append(
+            f"| {s.t0:.1f} | {s.t1:.1f} | {s.label} | {s.distance_m:.3f} | {s.energy_j:.0f} "
+            f"| {s.mean_power_w:.1f} | {cot} |"
+        )
+    lines += [
+        "",
+        "Plots: `path.png`, `gait.png`, `joints.png`, `current.png`, `cot.png`.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_report(
+    result: SimResult,
+    folder: str | Path,
+    *,
+    commands: Sequence[tuple[float, MotionCommand]] = (),
+    name: str = "run",
+    description: str = "",
+) -> list[Path]:
+    """Write the plots, ``summary.json`` and ``summary.md`` into ``folder``; their paths.
+
+    ``commands`` (the scenario's timeline) splits the run into segments for the
+    cost of transport; ``name`` and ``description`` title the report.
+    """
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = result.summary()
+    found = segments(result.samples, commands, result.mass_kg)
+    title = f"whexar sim: {name}"
+    written = [
+        plot_path(result, out / "path.png", title=f"{title}: path of the body centre, from above"),
+        plot_gait(result, out / "gait.png"),
+        plot_joints(result, out / "joints.png"),
+        plot_currents(result, out / "current.png"),
+        plot_cot(found, out / "cot.png"),
+    ]
+    doc = {
+        "scenario": name,
+        "description": description,
+        **summary,
+        "segments": [{**asdict(s), "mean_power_w": s.mean_power_w} for s in found],
+    }
+    json_path = out / "summary.json"
+    json_path.write_text(json.dumps(json_safe(doc), indent=2) + "\n", encoding="utf-8")
+    md_path = out / "summary.md"
+    heading = title if not description else f"{title}\n\n{description}"
+    md_path.write_text(summary_markdown(summary, found, title=heading), encoding="utf-8")
+    return [*written, json_path, md_path]
+
+
+__all__ = [
+    "FIGURES",
+    "PLOTTED_JOINTS",
+    "Segment",
+    "activity_intervals",
+    "format_figure",
+    "joint_traces",
+    "json_safe",
+    "leg_currents",
+    "plot_cot",
+    "plot_currents",
+    "plot_gait",
+    "plot_joints",
+    "plot_path",
+    "segments",
+    "summary_markdown",
+    "swing_intervals",
+    "write_report",
+]
