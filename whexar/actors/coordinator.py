@@ -228,6 +228,7 @@ class Coordinator(Actor):
         self.cycle_s = loco.max_cycle_s
         self.tilt_pitch = 0.0
         self.tilt_measured = 0.0
+        self.dt = 0.0
         self.swing_until = [-math.inf] * N_LEGS
         self.feet: list[Vec3 | None] = [None] * N_LEGS
         self.wheel_measured: list[float | None] = [None] * N_LEGS
@@ -951,6 +952,7 @@ class Coordinator(Actor):
     async def _tick(self, states: ServoStates) -> None:
         self.t = t = states.t
         dt = 0.0 if self.last_t is None else t - self.last_t
+        self.dt = dt
         self.last_t = t
         self.last_states_t = t
         self.cycle = states.cycle
@@ -1027,7 +1029,9 @@ class Coordinator(Actor):
             )
         )
         if self.state.connected:
-            swing = tuple(i for i in range(N_LEGS) if self.t < self.swing_until[i])
+            # As the gait counts them: a swing that ends within this cycle is down.
+            landing = self.t + self.dt
+            swing = tuple(i for i in range(N_LEGS) if landing < self.swing_until[i])
             down = [i for i in range(N_LEGS) if i not in swing]
             self.margin = self._margin(down)
             twist = (

@@ -45,6 +45,7 @@ from whexar.actors.messages import (
     ServoStates,
 )
 from whexar.robot import JOINT_NAMES, LEG_NAMES
+from whexar.sim.run import travelled
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -97,7 +98,7 @@ class Segment:
 def _travel(samples: Sequence[Sample], t0: float, t1: float) -> tuple[float, float]:
     """Distance (m) and energy (J) over the samples in [t0, t1]."""
     inside = [s for s in samples if t0 - 1e-9 <= s.t <= t1 + 1e-9]
-    distance = sum(math.hypot(b.x - a.x, b.y - a.y) for a, b in itertools.pairwise(inside))
+    distance = travelled(inside)
     energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(inside))
     return distance, energy
 

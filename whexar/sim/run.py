@@ -64,6 +64,24 @@ class Sample:
     power_w: float
 
 
+TRAVEL_STEP_S: Final = 1.0
+"""The path is measured between points this far apart: a gait sways the body sideways and
+back once a cycle, and that sway is not distance travelled."""
+
+
+def travelled(samples: Sequence[Sample]) -> float:
+    """Length (m) of the body centre's path, sampled every :data:`TRAVEL_STEP_S`."""
+    if not samples:
+        return 0.0
+    points = [samples[0]]
+    for s in samples[1:]:
+        if s.t - points[-1].t >= TRAVEL_STEP_S - 1e-9:
+            points.append(s)
+    if points[-1] is not samples[-1]:
+        points.append(samples[-1])
+    return sum(math.hypot(b.x - a.x, b.y - a.y) for a, b in itertools.pairwise(points))
+
+
 @dataclass
 class SimResult:
     """What a run did: the samples, every message, the world at the end."""
@@ -79,7 +97,7 @@ class SimResult:
     def summary(self) -> dict[str, Any]:
         """The figures of ``whexar sim --json``."""
         s = self.samples
-        distance = sum(math.hypot(b.x - a.x, b.y - a.y) for a, b in itertools.pairwise(s))
+        distance = travelled(s)
         energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(s))
         states = self.run.log.messages("locomotion", of=LocomotionState)
         moving = [x for x in states if x.activity in ("walking", "riding", "hybrid")]
@@ -292,4 +310,12 @@ def simulate(
     )
 
 
-__all__ = ["SAMPLE_PERIOD_S", "Sample", "SimResult", "seated_angles", "sim_graph", "simulate"]
+__all__ = [
+    "SAMPLE_PERIOD_S",
+    "Sample",
+    "SimResult",
+    "seated_angles",
+    "sim_graph",
+    "simulate",
+    "travelled",
+]
