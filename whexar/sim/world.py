@@ -64,6 +64,8 @@ from whexar.sensors.frame import ACC_KEYS, FSR_KEYS, IR_KEYS
 from whexar.sensors.imu_emulator import FakeLsm9ds1
 from whexar.sim.motors import MAX_DUTY, MOTORS, PWM_LIMIT, TICKS_PER_RAD, position_duty_per_rad
 
+_GAINS_SPAN: Final = slice(76, 86)
+"""Velocity I (76), Velocity P (78) … Position P Gain (84): the gain registers (e-manual)."""
 SENSE_PERIOD_S: Final = 0.01
 """How often the simulated sensors are refreshed (the board samples at 50 Hz, the IMU at 50)."""
 STANDARD_G: Final = 9.80665
@@ -108,6 +110,8 @@ class _Joint:
     index: int = 0
     """Position in the world's joint arrays."""
     drive: Drive | None = None
+    gains_raw: bytes = b""
+    """The gain registers' bytes the arrays were last computed from."""
 
 
 class _JointDynamics:
@@ -121,7 +125,9 @@ class _JointDynamics:
         """Step the world to the servo's time, then read the joint."""
         j = self.joint
         world = self.world
-        world.advance_to(j.servo.time)
+        t = j.servo.time
+        if world.time + world.h <= t + 1e-12:  # the first servo of a transaction steps it
+            world.advance_to(t)
         k = j.index
         motion.position = world.q[k] * TICKS_PER_RAD + ct.CENTER_TICKS
         motion.velocity = world.w[k] * TICKS_PER_RAD
@@ -292,11 +298,16 @@ class SimWorld:
             )
             self._vmax[k] = drive.max_velocity / TICKS_PER_RAD
             self._amax[k] = drive.max_acceleration / TICKS_PER_RAD
-            # Read from the table as the firmware does, without refreshing the present values.
-            table, reg = s.table, s.model.register
-            self._kp[k] = position_duty_per_rad(reg("position_p_gain").decode(table))
-            self._kvp[k] = reg("velocity_p_gain").decode(table) / KVP_DIVISOR
-            self._kvi[k] = reg("velocity_i_gain").decode(table) / KVI_DIVISOR
+            # The gains, read from the table as the firmware does, only when they changed
+            # (a new drive is mostly a new goal).
+            table = s.table
+            raw = bytes(table[_GAINS_SPAN])
+            if raw != j.gains_raw:
+                j.gains_raw = raw
+                reg = s.model.register
+                self._kp[k] = position_duty_per_rad(reg("position_p_gain").decode(table))
+                self._kvp[k] = reg("velocity_p_gain").decode(table) / KVP_DIVISOR
+                self._kvi[k] = reg("velocity_i_gain").decode(table) / KVI_DIVISOR
             self._volts[k] = s.input_voltage_v
             if not drive.torque:
                 self._integral[k] = 0.0
