@@ -159,3 +159,25 @@ def test_it_rides_2_m() -> None:
     speed = (rolling[-1].x - rolling[0].x) / (rolling[-1].t - rolling[0].t)
     assert speed == pytest.approx(0.15, rel=0.03)  # the wheels roll without slipping
     _ = np.array([s.z for s in rolling])
+
+
+def test_held_on_a_15_degree_slope_it_does_not_creep() -> None:
+    """Contacts that hold: seated on its wheels with every servo holding, the robot stays
+    put on a 15° slope (elliptic friction cone, impratio 10; docs/sim.md)."""
+    terrain = slope(15)
+    model = load_model(CFG, terrain=terrain)
+    chain = ServoChain.for_models(CFG.servos(), baudrate=CFG.bus.baudrate)
+    world = SimWorld(model, chain, cfg=CFG)
+    pos, quat = terrain.ground.start_pose(CFG.locomotion.sit_height_mm / 1000 + 0.002)
+    world.set_pose(seated_angles(CFG), base_xyz=pos, base_quat=quat)
+    for servo in chain.servos.values():
+        servo.set_register("goal_position", round(servo.position))
+        servo.set_register("torque_enable", 1)
+    marks = {}
+    for k in range(1, 301):  # 3 s
+        for servo in chain.servos.values():
+            servo.advance(k * 0.01)
+        if k in (100, 300):
+            marks[k] = np.array(world.base_position)
+    creep = float(np.linalg.norm(marks[300] - marks[100])) / 2.0  # m/s over the last 2 s
+    assert creep < 0.001
