@@ -122,9 +122,11 @@ class Progress:
         speed = math.hypot(s.x - first.x, s.y - first.y) / dt if dt > 0 else 0.0
         fallen = "  FALLEN" if max(abs(s.roll), abs(s.pitch)) > FALLEN_TILT_RAD else ""
         rtf = s.t / max(1e-9, time.perf_counter() - self._wall)
+        doing = s.activity or f"{self.mode}/{self.gait}"
+        event = f"  {s.event}" if s.event else ""
         return (
             f"t {s.t:6.1f}/{self.duration:g} s  x {s.x:+6.2f} y {s.y:+6.2f} m  "
-            f"{speed:4.2f} m/s  {self.mode}/{self.gait}  {rtf:4.1f}x  [{self.latest}]{fallen}"
+            f"{speed:4.2f} m/s  {doing}  {rtf:4.1f}x  [{self.latest}]{event}{fallen}"
         )
 
     def finish(self) -> None:

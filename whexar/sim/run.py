@@ -26,14 +26,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Final
 
-from whexar.actors.messages import LocomotionChanged, LocomotionState, MotionCommand
+from whexar.actors.messages import (
+    AccelImplausible,
+    AccelPlausible,
+    LocomotionChanged,
+    LocomotionState,
+    MotionCommand,
+)
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.config import RobotConfig, load_config
 from whexar.kinematics.body import Stance, stance_feet
 from whexar.kinematics.leg import ik
 from whexar.robot import LEG_NAMES
 from whexar.runtime.devices import DEVICES
-from whexar.runtime.messages import Event
+from whexar.runtime.messages import ActorReady, ActorStarting, Event
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sim.model import load_model
@@ -41,6 +47,8 @@ from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
 from whexar.testing.harness import Harness, RunResult, run_actors
 
+Quiet = (ActorStarting, ActorReady, AccelImplausible, AccelPlausible)
+"""Events too routine for the progress line."""
 SAMPLE_PERIOD_S: Final = 0.05
 """How often the world is sampled for the summary and the plots."""
 FALLEN_TILT_RAD: Final = math.radians(60.0)
@@ -62,6 +70,10 @@ class Sample:
     pitch: float
     yaw: float
     power_w: float
+    activity: str = ""
+    """What the coordinator does (its latest :class:`LocomotionState`), gait or mode."""
+    event: str = ""
+    """The latest event of the run, as a short line (empty until there is one)."""
 
 
 TRAVEL_STEP_S: Final = 1.0
@@ -262,10 +274,37 @@ def simulate(
     samples: list[Sample] = []
     power = [0.0]
 
-    def sample() -> None:
+    @dataclass
+    class _Seen:
+        entries: int = 0
+        activity: str = ""
+        event: str = ""
+
+    seen = _Seen()
+
+    def sample(log: list[Any]) -> None:
+        # What happened since the last sample: the coordinator's state, the latest event.
+        for entry in log[seen.entries :]:
+            msg = entry.message
+            if isinstance(msg, LocomotionState):
+                seen.activity = f"{msg.activity} {msg.mode}/{msg.gait}"
+            elif isinstance(msg, Event) and not isinstance(msg, Quiet):
+                seen.event = f"{type(msg).__name__} @{msg.t:.1f}s"
+        seen.entries = len(log)
         roll, pitch, yaw = _tilt(world.base_quat)
         x, y, z = world.base_position
-        s = Sample(world.time, x, y, z, roll, pitch, yaw, world.electric_power())
+        s = Sample(
+            world.time,
+            x,
+            y,
+            z,
+            roll,
+            pitch,
+            yaw,
+            world.electric_power(),
+            seen.activity,
+            seen.event,
+        )
         samples.append(s)
         if on_sample is not None:
             on_sample(s, world)
@@ -278,7 +317,7 @@ def simulate(
             while k < len(pending) and pending[k][0] <= t + 1e-9:
                 await h.feed("commands", pending[k][1])
                 k += 1
-            sample()
+            sample(h.log.entries)
             t += SAMPLE_PERIOD_S
             await h.sleep_until(t)
 
