@@ -42,6 +42,7 @@ from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorReady, ActorStarting, Event
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
+from whexar.sim.faults import SensorFault
 from whexar.sim.model import load_model
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
@@ -242,10 +243,12 @@ def simulate(
     start: tuple[float, float, float] = (0.0, 0.0, 0.0),
     on_sample: Callable[[Sample, SimWorld], None] | None = None,
     timestep: float = 0.002,
+    sensor_faults: Sequence[SensorFault] = (),
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
     ``config`` is the robot configuration file (the world and every actor read it);
+    ``faults`` a bus fault plan and ``sensor_faults`` the sensors' (:mod:`whexar.sim.faults`);
     ``start`` is (x, y, yaw) of the body on the ground; ``on_sample`` is called with every
     sample (progress lines, video frames).
     """
@@ -309,14 +312,44 @@ def simulate(
         if on_sample is not None:
             on_sample(s, world)
 
+    def fault(f: SensorFault, *, ending: bool = False) -> None:
+        if f.kind == "unplug":
+            if f.device == "board":
+                board.replug() if ending else board.unplug()
+            else:
+                chip.replug() if ending else chip.unplug()
+        elif f.kind == "freeze":
+            chip.thaw() if ending else chip.freeze()
+        elif f.kind == "corrupt":
+            board.corrupt(f.frames)
+        elif f.kind == "drop":
+            board.drop(f.frames)
+        elif f.kind == "dead_fsr":
+            world.dead_fsr.add(f.leg)
+        else:
+            world.dead_ir.add(f.sensor)
+
+    timeline = sorted(
+        [(f.at_s, f, False) for f in sensor_faults]
+        + [
+            (f.at_s + f.duration_s, f, True)
+            for f in sensor_faults
+            if f.kind in ("unplug", "freeze") and f.duration_s > 0
+        ],
+        key=lambda e: e[0],
+    )
+
     async def scenario(h: Harness) -> None:
         pending = sorted(commands, key=lambda c: c[0])
-        k = 0
+        k = j = 0
         t = 0.0
         while True:
             while k < len(pending) and pending[k][0] <= t + 1e-9:
                 await h.feed("commands", pending[k][1])
                 k += 1
+            while j < len(timeline) and timeline[j][0] <= t + 1e-9:
+                fault(timeline[j][1], ending=timeline[j][2])
+                j += 1
             sample(h.log.entries)
             t += SAMPLE_PERIOD_S
             await h.sleep_until(t)

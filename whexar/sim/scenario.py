@@ -49,8 +49,9 @@ clamps them and says so with an event, as on the robot.
 
 *Seed.* The world is deterministic on virtual time; the seed places the
 random features of a table terrain (rocks without a seed of their own). A
-fault plan keeps its own seed. Sensor faults (noise, a dead force sensor) are
-not part of scenarios yet: TODO, with the sensor fault plans.
+fault plan keeps its own seed. Sensor faults are ``[[sensor_faults]]`` tables
+(:class:`~whexar.sim.faults.SensorFault`: a board or IMU unplugged, corrupted or
+dropped frames, a frozen IMU, a dead force sensor or rangefinder, at a time).
 """
 
 from __future__ import annotations
@@ -77,6 +78,7 @@ from whexar.runtime.schema import (
     read_toml,
 )
 from whexar.sim import terrain as tr
+from whexar.sim.faults import SensorFault
 
 if TYPE_CHECKING:
     from whexar.sim.run import Sample, SimResult
@@ -206,13 +208,18 @@ class ScenarioFile(CheckedSection):
     """Tables ``{t = …, <MotionCommand fields>}``, checked by :func:`check_commands`."""
     faults: str | None = Field(default=None, min_length=1)
     """A bus fault plan (``config/faults/*.toml``), relative to the scenario's folder."""
+    sensor_faults: tuple[SensorFault, ...] = ()
+    """The sensors' faults (:mod:`whexar.sim.faults`), ``[[sensor_faults]]`` tables."""
     config: str | None = Field(default=None, min_length=1)
     """A robot configuration file, relative to the scenario's folder; absent: the defaults."""
 
     def problems(self, at: str = "") -> list[Problem]:
+        found: list[Problem] = []
         if isinstance(self.terrain, TerrainSpec):
-            return self.terrain.problems("terrain")
-        return []
+            found.extend(self.terrain.problems("terrain"))
+        for k, fault in enumerate(self.sensor_faults):
+            found.extend(fault.problems(f"sensor_faults[{k}]"))
+        return found
 
 
 # --------------------------------------------------------------------------- the scenario
@@ -268,6 +275,7 @@ class Scenario:
             duration=self.duration_s,
             config=self.config_path,
             faults=self.faults,
+            sensor_faults=self.spec.sensor_faults,
             start=self.start,
             on_sample=on_sample,
         )

@@ -224,6 +224,10 @@ class SimWorld:
                 model.geom_group[g] = ROBOT_GEOM_GROUP
         self._ray_groups = np.ones(6, dtype=np.uint8)
         self._ray_groups[ROBOT_GEOM_GROUP] = 0
+        self.dead_fsr: set[int] = set()
+        """Legs whose force sensor reads 0 (a sensor fault, :mod:`whexar.sim.faults`)."""
+        self.dead_ir: set[int] = set()
+        """Rangefinders (0 right, 1 left) that read 0 counts: no reading."""
         self.fsr_counts: list[int] = [0] * 6
         self.ir_counts: list[int] = [0, 0]
         if board is not None:
@@ -374,7 +378,7 @@ class SimWorld:
                 continue
             mujoco.mj_contactForce(m, d, k, wrench)
             forces[leg] += abs(float(wrench[0]))  # the normal force, in the contact frame
-        self.fsr_counts = [fsr_counts(f) for f in forces]
+        self.fsr_counts = [0 if i in self.dead_fsr else fsr_counts(f) for i, f in enumerate(forces)]
         geom = np.zeros(1, dtype=np.int32)
         ir = self.cfg.ir
         counts = []
@@ -388,7 +392,7 @@ class SimWorld:
             counts.append(
                 counts_for_distance(max(dist, ir.min_distance_mm / 1000), ir.k_cm, ir.exponent)
             )
-        self.ir_counts = counts
+        self.ir_counts = [0 if i in self.dead_ir else c for i, c in enumerate(counts)]
         if self.imu is not None or self.board is not None:
             # The chip's filter: the mean acceleration since the last reading (the change of
             # velocity over the period), not one step's contact spikes, which a sample
