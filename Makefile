@@ -5,7 +5,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: test sim lint typecheck firmware clean
+.PHONY: test sim gl lint typecheck firmware clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "whexar needs Python >= 3.11")'
@@ -27,20 +27,23 @@ typecheck: $(STAMP)
 firmware:
 	$(MAKE) -C firmware test
 
-test: lint typecheck firmware
+test: lint typecheck firmware gl
 	$(BIN)/pytest -q
 
-# The main job: the full runtime drives the simulated WHexaR (MuJoCo) over the default
-# course; summary on the terminal, plots and a video in sim-report/. Headless rendering
-# needs EGL or OSMesa: their Debian packages are installed when missing (as root).
+# Headless OpenGL for MuJoCo's renderer (the sim's video and its test): EGL or
+# OSMesa, their Debian packages installed when missing (as root).
 SIM_DEBS := libegl1 libgl1 libosmesa6
 
-sim: $(STAMP)
+gl:
 	@missing=""; for p in $(SIM_DEBS); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
 	if [ -n "$$missing" ]; then \
-		echo "installing$$missing (headless OpenGL for the video)"; \
+		echo "installing$$missing (headless OpenGL for the simulation's video)"; \
 		apt-get update -qq && apt-get install -y -qq $$missing; \
 	fi
+
+# The main job: the full runtime drives the simulated WHexaR (MuJoCo) over the default
+# course; summary on the terminal, plots and a video in sim-report/.
+sim: $(STAMP) gl
 	$(BIN)/whexar sim --report sim-report --video sim-report/course.mp4
 
 clean:
