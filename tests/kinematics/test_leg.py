@@ -11,7 +11,15 @@ from hypothesis import strategies as st
 from whexar.cli import main
 from whexar.config import default_geometry
 from whexar.errors import JointLimitError, KinematicsError, UnreachableError, UsageError
-from whexar.kinematics.leg import CHAIN_POINTS, dh_transforms, fk, fk_chain, ik
+from whexar.kinematics.leg import (
+    CHAIN_POINTS,
+    Target,
+    dh_transforms,
+    fk,
+    fk_chain,
+    ik,
+    ik_point,
+)
 
 # Table 6.5: goal coordinates [mm] and coxa, femur, tibia, tarsus [deg].
 TABLE_6_5 = [
@@ -252,3 +260,23 @@ def test_cli_ik_pitch_and_clamp(capsys: pytest.CaptureFixture[str]) -> None:
     assert out["trochanter"] == pytest.approx(10.0)
     assert main(["kin", "ik", "--leg", "1", "400", "0", "0", "--clamp", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["clamped"] is True
+
+
+def test_ik_point_is_ik_for_one_target() -> None:
+    """The plain-Python one-target IK gives ik's angles, and its errors, for any target."""
+    rng = np.random.default_rng(11)
+    met = 0
+    for _ in range(3000):
+        point = rng.uniform([0.05, -0.1, -0.25], [0.35, 0.45, 0.25])
+        pitch = 0.0 if rng.random() < 0.5 else float(rng.uniform(-0.6, 0.6))
+        target: Target = "contact" if rng.random() < 0.5 else "tarsus"
+        try:
+            want = ik(point, G, pitch=pitch, target=target).angles
+        except KinematicsError as exc:
+            with pytest.raises(type(exc)):
+                ik_point(tuple(point), G, pitch=pitch, target=target)
+            continue
+        got = ik_point(tuple(point), G, pitch=pitch, target=target)
+        assert np.allclose(got, want, rtol=0, atol=1e-12)
+        met += 1
+    assert met > 500

@@ -73,7 +73,7 @@ from whexar.config import ConfigFile, ContactSource, RobotConfig, load_config
 from whexar.errors import KinematicsError
 from whexar.kinematics.cpg import OSCILLATORS, cpg_orbit
 from whexar.kinematics.geometry import SIDE_SIGN, LegGeometry
-from whexar.kinematics.leg import ik
+from whexar.kinematics.leg import ik_point
 from whexar.kinematics.trajectory import SWING_SHAPES, FootTrajectory
 from whexar.robot import LEG_NAMES, N_JOINTS, leg_index
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
@@ -525,7 +525,7 @@ class LegActor(Actor):
     def _solve(self, p: list[float] | tuple[float, float, float]) -> list[float] | None:
         pitch = 0.0 if self.upside_down or self.flip is not None else self.trochanter
         try:
-            solution = ik(self._to_leg(p), self.geometry, pitch=pitch, target="contact")
+            solution = ik_point(self._to_leg(p), self.geometry, pitch=pitch, target="contact")
         except KinematicsError as exc:
             if self.ik_ok:
                 self.ik_ok = False
@@ -541,7 +541,7 @@ class LegActor(Actor):
                 )
             return None
         self.ik_ok = True
-        return [float(a) for a in solution.angles]
+        return list(solution)
 
     def _trochanter(self, t: float) -> float:
         if self.flip is None:

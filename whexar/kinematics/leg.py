@@ -172,6 +172,74 @@ def ik(
     return IKSolution(limited, reach, ~reach | outside.any(axis=-1))
 
 
+def ik_point(
+    point: tuple[float, float, float] | list[float],
+    geometry: LegGeometry,
+    *,
+    pitch: float = 0.0,
+    target: Target = "tarsus",
+) -> tuple[float, float, float, float, float]:
+    """:func:`ik` of one target, in plain Python: the case a leg controller asks every cycle.
+
+    The same equations and the same results as :func:`ik` (tested equal), without numpy's
+    per-call cost. A target it cannot meet goes to :func:`ik`, which raises the error that
+    names it.
+    """
+    g = geometry
+    x, y, z = float(point[0]), float(point[1]), float(point[2])
+    offset = g.contact_offset if target == "contact" else 0.0
+    if target not in ("tarsus", "contact") or not (
+        math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and math.isfinite(pitch)
+    ):
+        return _ik_tuple(ik((x, y, z), g, pitch=pitch, target=target))
+    if pitch == 0:
+        theta1 = 0.0
+        s = y - offset
+        rho = math.hypot(x, z)
+        coxa = math.atan2(z, x)
+        in_plane = True
+    else:
+        if abs(pitch) >= _HALF_PI:
+            return _ik_tuple(ik((x, y, z), g, pitch=pitch, target=target))
+        theta1 = pitch
+        s_target = y / math.cos(theta1)
+        zeta = s_target * math.sin(theta1)
+        s = s_target - offset
+        rho_sq = x * x + z * z - zeta * zeta
+        in_plane = rho_sq >= 0.0
+        rho = math.sqrt(max(rho_sq, 0.0))
+        coxa = math.atan2(z, x) - math.atan2(zeta, rho)
+    r = rho - g.trochanter_offset
+    lt = math.hypot(r, s)
+    a2, a3 = g.femur, g.tibia
+    reach = abs(a2 - a3) - _REACH_EPS <= lt <= a2 + a3 + _REACH_EPS and in_plane
+    if not reach:
+        return _ik_tuple(ik((x, y, z), g, pitch=pitch, target=target))
+    lt = max(lt, _REACH_EPS)
+    lt_sq = lt * lt
+    gamma = math.atan2(r, s)
+    cos_beta = (lt_sq + (a2 * a2 - a3 * a3)) / (2 * a2 * lt)
+    cos_alpha = ((a2 * a2 + a3 * a3) - lt_sq) / (2 * a2 * a3)
+    beta = math.acos(min(max(cos_beta, -1.0), 1.0))
+    alpha = math.acos(min(max(cos_alpha, -1.0), 1.0))
+    femur = beta + gamma - _HALF_PI
+    tibia = alpha - math.pi
+    raw = (coxa, theta1, femur, tibia, -_HALF_PI - femur - tibia)
+    lo, hi = g.lower_limits, g.upper_limits
+    out = []
+    for k, a in enumerate(raw):
+        a = (a + math.pi) % _TWO_PI - math.pi
+        if not lo[k] <= a <= hi[k]:
+            return _ik_tuple(ik((x, y, z), g, pitch=pitch, target=target))
+        out.append(a)
+    return out[0], out[1], out[2], out[3], out[4]
+
+
+def _ik_tuple(solution: IKSolution) -> tuple[float, float, float, float, float]:
+    a = [float(v) for v in solution.angles]
+    return a[0], a[1], a[2], a[3], a[4]
+
+
 def _pitch(pitch: ArrayLike) -> FloatArray:
     theta1 = np.asarray(pitch, dtype=np.float64)
     if not np.isfinite(theta1).all() or (np.abs(theta1) >= _HALF_PI).any():
