@@ -202,8 +202,16 @@ class SimWorld:
         self._goal, self._vmax, self._amax = np.zeros(n), np.zeros(n), np.full(n, np.inf)
         self._kp, self._kvp, self._kvi = np.zeros(n), np.zeros(n), np.zeros(n)
         self._volts = np.zeros(n)
+        self._volts_seen: list[float] = []
         self._desired, self._desired_v = np.zeros(n), np.zeros(n)
         self._integral, self._torque, self._accel = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._position = np.zeros(n, dtype=bool)
+        self._velocity = np.zeros(n, dtype=bool)
+        self._finite = np.zeros(n, dtype=bool)
+        self._position_f, self._on_f = np.zeros(n), np.zeros(n)
+        self._amax_finite = np.ones(n)
+        self._ramped = False
+        self._drive_gain, self._emf_gain = np.zeros(n), np.zeros(n)
         self.q: list[float] = [0.0] * n
         self.w: list[float] = [0.0] * n
         self.accel: list[float] = [0.0] * n
@@ -287,10 +295,17 @@ class SimWorld:
 
     def _orders(self) -> None:
         """Every servo's orders as arrays, read again only where a write made a new drive."""
+        # The supply (a brownout fault changes it without a write).
+        volts = [j.servo.input_voltage_v for j in self.joints]
+        changed = volts != self._volts_seen
+        if changed:
+            self._volts_seen = volts
+            self._volts = np.array(volts)
         for j in self.joints:
             drive = j.servo.drive
             if drive is j.drive:
                 continue
+            changed = True
             j.drive = drive
             k, s = j.index, j.servo
             self._on[k] = drive.torque
@@ -312,48 +327,53 @@ class SimWorld:
                 self._kp[k] = position_duty_per_rad(reg("position_p_gain").decode(table))
                 self._kvp[k] = reg("velocity_p_gain").decode(table) / KVP_DIVISOR
                 self._kvi[k] = reg("velocity_i_gain").decode(table) / KVI_DIVISOR
-            self._volts[k] = s.input_voltage_v
             if not drive.torque:
                 self._integral[k] = 0.0
+        if changed:
+            # What the per-step law needs, derived once per change of orders.
+            on, vel = self._on, self._velocity_mode
+            self._position = on & ~vel
+            self._position_f = self._position.astype(float)
+            self._velocity = on & vel
+            self._on_f = on.astype(float)
+            self._finite = np.isfinite(self._amax) & self._position
+            self._ramped = bool(self._finite.any())
+            self._amax_finite = np.where(self._finite, self._amax, 1.0)
+            self._drive_gain = self._kt * self._volts / self._resistance
+            self._emf_gain = self._kt * self._kt / self._resistance
 
     def _control(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """The firmware and the motor of every servo for one step: the joints' torques."""
+        """The firmware and the motor of every servo for one step: the joints' torques.
+
+        Written for numpy's per-call cost (about a microsecond an operation, 42 joints):
+        the masks and constants come from :meth:`_orders`, once per drive change."""
         h = self.h
         # Position modes: the firmware's profile runs the desired position toward the goal
         # at the profile's velocity, ramping at its acceleration (a step when that is 0).
         gap = self._goal - self._desired
-        v = self._desired_v
-        amax = self._amax
         vmax = self._vmax
-        stepped = np.clip(gap / h, -vmax, vmax)
-        finite = np.isfinite(amax)
-        if finite.any():
-            a = np.where(finite, amax, 1.0)
-            stop = v * v / (2 * a)
+        v = np.minimum(np.maximum(gap * (1.0 / h), -vmax), vmax)
+        if self._ramped:
+            amax, v0 = self._amax_finite, self._desired_v
+            stop = v0 * v0 / (2 * amax)
             want = np.where(np.abs(gap) > stop, np.copysign(vmax, gap), 0.0)
-            ramped = v + np.clip(want - v, -a * h, a * h)
+            ramped = v0 + np.minimum(np.maximum(want - v0, -amax * h), amax * h)
             ramped = np.where(np.abs(ramped * h) > np.abs(gap), gap / h, ramped)
-            v = np.where(finite, ramped, stepped)
-        else:
-            v = stepped
-        on = self._on
-        position = on & ~self._velocity_mode
-        self._desired_v = np.where(position, v, 0.0)
-        self._desired = np.where(position, self._desired + v * h, q)
-        duty_position = self._kp * (self._desired - q)
+            v = np.where(self._finite, ramped, v)
+        position = self._position_f  # 1.0 where a position mode drives, else 0.0
+        v = v * position
+        self._desired_v = v
+        self._desired = np.where(self._position, self._desired + v * h, q)
         # Velocity mode (the wheels): PI on the error in velocity units (e-manual).
-        error = (self._goal - w) / VELOCITY_UNIT_RAD_S
-        ticks = h / CONTROL_PERIOD_S
-        pwm = self._kvp * error + self._kvi * (self._integral + error * ticks)
-        duty_velocity = pwm / PWM_LIMIT
-        free = np.abs(duty_velocity) < MAX_DUTY  # no wind-up while saturated
-        velocity = on & self._velocity_mode
-        self._integral = np.where(velocity & free, self._integral + error * ticks, self._integral)
-        duty = np.clip(
-            np.where(self._velocity_mode, duty_velocity, duty_position), -MAX_DUTY, MAX_DUTY
-        )
+        error = (self._goal - w) * (1.0 / VELOCITY_UNIT_RAD_S)
+        stepped = self._integral + error * (h / CONTROL_PERIOD_S)
+        duty_velocity = (self._kvp * error + self._kvi * stepped) * (1.0 / PWM_LIMIT)
+        free = self._velocity & (np.abs(duty_velocity) < MAX_DUTY)  # no wind-up saturated
+        self._integral = np.where(free, stepped, self._integral)
+        duty = np.where(self._velocity_mode, duty_velocity, self._kp * (self._desired - q))
+        duty = np.minimum(np.maximum(duty, -MAX_DUTY), MAX_DUTY)
         # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft; torque off: coasting.
-        tau = np.where(on, self._kt * (duty * self._volts - self._kt * w) / self._resistance, 0.0)
+        tau: np.ndarray = (duty * self._drive_gain - self._emf_gain * w) * self._on_f
         self._torque = tau
         return tau
 
