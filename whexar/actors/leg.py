@@ -22,7 +22,8 @@ that cycle:
 4. steers and drives the wheel: direction = s·ψ − coxa (5.1), wheel rate =
    speed / radius (eq. 5.18), the wheel stopped whenever the foot is in the
    air;
-5. sends the seven goals to the bus scheduler and reports :class:`LegState`.
+5. sends the goals that changed by half a tick or more to the bus scheduler (which
+   keeps the others) and reports :class:`LegState`.
 
 Adaptive swing (Diosdado 2014, 3.5–3.6): contact comes from the force
 sensor when frames arrive, otherwise from the femur current (thesis 6.7.3).
@@ -90,6 +91,8 @@ MIN_SIN: Final = 0.05
 """eq. 5.19 divides by sin α: below this (a joint within 3° of straight) it says nothing."""
 FLIPPED_TROCHANTER: Final = -math.pi
 """Trochanter angle of a flipped leg: Goal Position tick 0, inside the register's turn."""
+HALF_TICK_RAD: Final = math.pi / 4096
+"""Half a Goal Position tick (0.088°): goals closer than this reach the wire unchanged."""
 _POSITIONING: Final = 5
 _DIRECTION: Final = 5
 _WHEEL: Final = 6
@@ -263,6 +266,8 @@ class LegActor(Actor):
         self.blends: dict[int, tuple[float, float]] = {}
         """joint → (reflex angle at release, release time)."""
         self.wheel_radius = self.geometry.wheel_radius
+        self.sent: list[float] = [math.inf] * N_JOINTS
+        """The goals last sent, per joint (rad, or rad/s for the wheel); inf: none yet."""
         self.steer = False
         self.heading = 0.0
         self.speed = 0.0
@@ -556,31 +561,35 @@ class LegActor(Actor):
             return b
         return a + (b - a) * min_jerk(u)
 
-    def _goals(self, t: float, angles: list[float], airborne: bool) -> JointGoals:
-        goals = [
-            JointGoal(t=t, source=self.name, leg=self.leg, joint=j, position_rad=angles[j])
-            for j in range(_POSITIONING)
-        ]
+    def _goals(self, t: float, angles: list[float], airborne: bool) -> JointGoals | None:
+        """This cycle's goals that differ from the ones last sent (None: nothing new).
+
+        The bus keeps a joint's goal until a new one comes, and sends a servo its goal
+        again on its own before the Bus Watchdog would expire: an unchanged goal need not
+        travel. A position within half a Goal Position tick of the last is unchanged."""
         if self.steer and not self.upside_down:
             # direction = s·ψ − coxa (wheels.direction_for_heading, 5.1), within one turn.
             direction = self.side * self.heading - angles[0]
             direction = (direction + math.pi) % (2 * math.pi) - math.pi
         else:
             direction = 0.0
-        goals.append(
-            JointGoal(t=t, source=self.name, leg=self.leg, joint=_DIRECTION, position_rad=direction)
-        )
         speed = 0.0 if airborne or not self.steer or self.upside_down else self.speed
-        goals.append(
-            JointGoal(
-                t=t,
-                source=self.name,
-                leg=self.leg,
-                joint=_WHEEL,
-                velocity_rad_s=speed / self.wheel_radius,
+        last = self.sent
+        goals = []
+        for j in range(_POSITIONING + 1):
+            angle = angles[j] if j < _POSITIONING else direction
+            if abs(angle - last[j]) >= HALF_TICK_RAD:
+                last[j] = angle
+                goals.append(
+                    JointGoal(t=t, source=self.name, leg=self.leg, joint=j, position_rad=angle)
+                )
+        rate = speed / self.wheel_radius
+        if rate != last[_WHEEL]:
+            last[_WHEEL] = rate
+            goals.append(
+                JointGoal(t=t, source=self.name, leg=self.leg, joint=_WHEEL, velocity_rad_s=rate)
             )
-        )
-        return JointGoals(t=t, source=self.name, goals=tuple(goals))
+        return JointGoals(t=t, source=self.name, goals=tuple(goals)) if goals else None
 
     def _apply_reflex(self, t: float, angles: list[float]) -> tuple[list[float], list[JointGoal]]:
         """Reflex-held joints, and the blend back from them (module docstring)."""
@@ -645,13 +654,17 @@ class LegActor(Actor):
             angles, forwarded = self._apply_reflex(t, angles)
             if forwarded:
                 phase = "reflex"
+                for g in forwarded:  # the bus now holds the reflex's goal for these joints
+                    self.sent[g.joint] = math.inf
                 await self.goals.send(
                     JointGoals(t=t, source=self.name, goals=tuple(forwarded), reflex=True)
                 )
         airborne = phase in ("swing", "flip") or (
             phase == "move" and step is not None and step.height > 0.0
         )
-        await self.goals.send(self._goals(t, angles, airborne))
+        goals = self._goals(t, angles, airborne)
+        if goals is not None:
+            await self.goals.send(goals)
         if self.state.connected:
             measured = None
             # A plan that does not read the trochanter (the default) leaves its goal.
