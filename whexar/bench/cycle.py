@@ -59,6 +59,7 @@ from whexar.actors.leg import LegActor
 from whexar.actors.messages import (
     JointGoals,
     JointState,
+    LegState,
     LocomotionState,
     MotionCommand,
     ServoStates,
@@ -186,7 +187,7 @@ class Samples:
     off_activity: int = 0
     """Cycles whose published activity was not the engine's."""
     missing_goals: int = 0
-    """Cycles that did not bring six leg goals for the cycle's time."""
+    """Cycles in which not every leg answered (a LegState for the cycle's time)."""
     swing_cycles: int = 0
     """Cycles with a leg in swing (the coordinator's :class:`LocomotionState`)."""
     rolling_cycles: int = 0
@@ -266,6 +267,7 @@ def measure(
             states_channel = runtime.channel("servo-state")
             commands = runtime.channel("commands")
             goals = runtime.channel("goals").subscribe(FEEDER)
+            legs = runtime.channel("legs").subscribe(FEEDER)
             loco = runtime.channel("locomotion").subscribe(FEEDER)
             cpu = time.thread_time_ns
             t0 = clock.now()
@@ -285,14 +287,16 @@ def measure(
                 await clock.sleep_until(t + period)
                 end = cpu()
                 cycle += 1
-                sent = 0
-                rolling = False
                 while not goals.empty():
                     goal: JointGoals = goals.get_nowait()
-                    servos.take(goal)
-                    if goal.t == t and not goal.reflex:
-                        sent += 1
-                        rolling = rolling or any(g.velocity_rad_s for g in goal.goals)
+                    servos.take(goal)  # legs send the goals that changed; the rest stand
+                rolling = any(servos.wheel_speed)
+                answered = set()
+                while not legs.empty():
+                    leg_state: LegState = legs.get_nowait()
+                    if leg_state.t == t:
+                        answered.add(leg_state.leg)
+                sent = len(answered)
                 swinging = False
                 while not loco.empty():
                     state: LocomotionState = loco.get_nowait()
@@ -436,7 +440,7 @@ def run(
     )
     notes.extend(
         f"{r.label}: {r.off_activity} cycles of another activity, "
-        f"{r.missing_goals} without six legs' goals (the figures may not be what they say)"
+        f"{r.missing_goals} without all six legs answering (the figures may not be what they say)"
         for r in results
         if r.off_activity or r.missing_goals
     )
