@@ -109,3 +109,26 @@ def test_writes_riding_on_a_failed_read_go_out_after_it() -> None:
     assert result.failed == 42
     assert result.sent == [0]
     assert chain.servos[3].goal == 2100
+
+
+def test_remove_stuffing_is_the_sdks() -> None:
+    """whexar's packet handler unstuffs exactly as dynamixel-sdk's (its fast path skips
+    only packets with nothing stuffed)."""
+    import random
+
+    from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
+
+    from whexar.bus.sdk import PacketHandler
+
+    sdk, ours = Protocol2PacketHandler(), PacketHandler()
+    rng = random.Random(7)
+    stuffed = 0
+    for _ in range(3000):
+        body = [
+            rng.choice([0xFF, 0xFD, 0x00, rng.randrange(256)]) for _ in range(rng.randrange(1, 30))
+        ]
+        length = len(body) + 2
+        packet = [0xFF, 0xFF, 0xFD, 0x00, 0x01, length & 0xFF, length >> 8, *body, 0x12, 0x34]
+        stuffed += b"\xff\xff\xfd\xfd" in bytes(packet[5:])
+        assert ours.removeStuffing(list(packet)) == sdk.removeStuffing(list(packet))
+    assert stuffed > 50  # the slow path was exercised too

@@ -140,17 +140,34 @@ class SyncReadResult:
         return self.result == COMM_SUCCESS
 
 
+_LENGTH_L: Final = 5
+_INSTRUCTION: Final = 7
+"""Protocol 2.0 packet offsets: LEN_L at 5, the instruction at 7 (e-manual)."""
+_STUFFED: Final = b"\xff\xff\xfd\xfd"
+
+
 class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
     """dynamixel-sdk's Protocol 2.0 packet handler, with its CRC table built once.
 
     The SDK's ``updateCRC`` rebuilds its 256-entry table as a list literal on
     every call — one call per packet, 43 per Sync Read of 42 servos. Same
     polynomial and results (:func:`whexar.bus.protocol.crc16`, tested equal);
-    everything else is the SDK's own code.
+    ``removeStuffing`` returns a packet without stuffing as it is (tested equal).
+    Everything else is the SDK's own code.
     """
 
     def updateCRC(self, crc_accum: int, data_blk_ptr: Any, data_blk_size: int) -> int:  # noqa: N802
         return crc16(bytes(data_blk_ptr[:data_blk_size]), crc_accum)
+
+    def removeStuffing(self, packet: list[int]) -> list[int]:  # noqa: N802
+        """The SDK's, but a packet with no stuffed ``FF FF FD FD`` (nearly all of them) is
+        returned at once: the SDK's byte loop would copy each byte onto itself."""
+        length = packet[_LENGTH_L] | (packet[_LENGTH_L + 1] << 8)
+        body = bytes(packet[_INSTRUCTION - 2 : _INSTRUCTION + length - 2])
+        if _STUFFED not in body:
+            return packet
+        result: list[int] = super().removeStuffing(packet)
+        return result
 
 
 class _Capture:

@@ -305,18 +305,25 @@ class SimWorld:
             drive = j.servo.drive
             if drive is j.drive:
                 continue
-            changed = True
             j.drive = drive
             k, s = j.index, j.servo
+            velocity_mode = drive.mode == VELOCITY_MODE
+            amax = drive.max_acceleration / TICKS_PER_RAD
+            if (
+                bool(self._on[k]) != drive.torque
+                or bool(self._velocity_mode[k]) != velocity_mode
+                or self._amax[k] != amax
+            ):
+                changed = True  # the masks change, not only a goal
             self._on[k] = drive.torque
-            self._velocity_mode[k] = drive.mode == VELOCITY_MODE
+            self._velocity_mode[k] = velocity_mode
             self._goal[k] = (
                 drive.goal_velocity / TICKS_PER_RAD
                 if drive.mode == VELOCITY_MODE
                 else (drive.goal_position - ct.CENTER_TICKS) / TICKS_PER_RAD
             )
             self._vmax[k] = drive.max_velocity / TICKS_PER_RAD
-            self._amax[k] = drive.max_acceleration / TICKS_PER_RAD
+            self._amax[k] = amax
             # The gains, read from the table as the firmware does, only when they changed
             # (a new drive is mostly a new goal).
             table = s.table
@@ -330,7 +337,8 @@ class SimWorld:
             if not drive.torque:
                 self._integral[k] = 0.0
         if changed:
-            # What the per-step law needs, derived once per change of orders.
+            # What the per-step law needs, derived again when torque, mode, profile
+            # acceleration or supply changed (a new goal changes none of them).
             on, vel = self._on, self._velocity_mode
             self._position = on & ~vel
             self._position_f = self._position.astype(float)
