@@ -66,8 +66,9 @@ from whexar.sim.motors import MAX_DUTY, MOTORS, PWM_LIMIT, TICKS_PER_RAD, positi
 
 _GAINS_SPAN: Final = slice(76, 86)
 """Velocity I (76), Velocity P (78) … Position P Gain (84): the gain registers (e-manual)."""
-SENSE_PERIOD_S: Final = 0.01
-"""How often the simulated sensors are refreshed (the board samples at 50 Hz, the IMU at 50)."""
+SENSE_PERIOD_S: Final = 0.02
+"""How often the simulated sensors are refreshed: 50 Hz, the rate the board samples its
+inputs at (firmware/PROTOCOL.md) and the IMU reader reads (``imu.rate_hz``)."""
 STANDARD_G: Final = 9.80665
 FSR_DIVIDER_OHM: Final = 10_000.0
 """The FSR's divider resistor on the sensor board (Fig. 5.7: 10 kΩ)."""
@@ -204,7 +205,7 @@ class SimWorld:
         self._volts = np.zeros(n)
         self._volts_seen: list[float] = []
         self._desired, self._desired_v = np.zeros(n), np.zeros(n)
-        self._integral, self._torque, self._accel = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._integral, self._torque = np.zeros(n), np.zeros(n)
         self._position = np.zeros(n, dtype=bool)
         self._velocity = np.zeros(n, dtype=bool)
         self._finite = np.zeros(n, dtype=bool)
@@ -280,16 +281,19 @@ class SimWorld:
             return
         self._orders()
         m, d, h = self.model, self.data, self.h
-        while self.time + self.h <= t + 1e-12:
-            w0 = d.qvel[self._dadr]
-            d.ctrl[self._act] = self._control(d.qpos[self._qadr], w0)
+        qadr, dadr, act = self._qadr, self._dadr, self._act
+        start, w0 = self.time, d.qvel[dadr]
+        while self.time + h <= t + 1e-12:
+            d.ctrl[act] = self._control(d.qpos[qadr], d.qvel[dadr])
             mujoco.mj_step(m, d)
             self.steps += 1
             self.time = self.steps * h
-            self._accel = (d.qvel[self._dadr] - w0) / h
-        self.q = d.qpos[self._qadr].tolist()
-        self.w = d.qvel[self._dadr].tolist()
-        self.accel = self._accel.tolist()
+        w1 = d.qvel[dadr]
+        self.q = d.qpos[qadr].tolist()
+        self.w = w1.tolist()
+        # The mean acceleration since the last transaction: what the servo's Moving and
+        # profile registers are told (no register reports acceleration itself).
+        self.accel = ((w1 - w0) / (self.time - start)).tolist()
         if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
             self._sense()
 
