@@ -216,7 +216,12 @@ def _time(
     return float(t)
 
 
-def _fields(data: Mapping[str, Any], where: str, problems: list[Problem]) -> dict[str, Any]:
+def motion_fields(
+    data: Mapping[str, Any], where: str, problems: list[Problem], *, sep: str = ": "
+) -> dict[str, Any]:
+    """The :class:`MotionCommand` fields of one command (every key but ``t``), checked
+    against :data:`MOTION_FIELDS`; each bad key is a problem at ``where`` + ``sep`` + key
+    (a script's ``line 3: vx_m_s``, a scenario's ``commands[2].vx_m_s``)."""
     fields: dict[str, Any] = {}
     for key, value in data.items():
         if key == "t":
@@ -225,12 +230,12 @@ def _fields(data: Mapping[str, Any], where: str, problems: list[Problem]) -> dic
         if spec is None:
             known = ", ".join(("t", *MOTION_FIELDS))
             problems.append(
-                Problem(f"{where}: {key}", value, f"unknown key; allowed here: {known}")
+                Problem(f"{where}{sep}{key}", value, f"unknown key; allowed here: {known}")
             )
             continue
         allowed = spec.problem(value)
         if allowed is not None:
-            problems.append(Problem(f"{where}: {key}", value, allowed))
+            problems.append(Problem(f"{where}{sep}{key}", value, allowed))
         elif spec.base is float and value is not None:
             fields[key] = float(value)  # a JSON 1 is an int: messages hold floats
         else:
@@ -251,7 +256,7 @@ def parse_command(text: str, *, t: float, source: str, where: str = "command") -
     if data is None:
         raise ConfigError(where, problems)
     _time(data, where, problems, required=False)
-    fields = _fields(data, where, problems)
+    fields = motion_fields(data, where, problems)
     if problems:
         raise ConfigError(where, problems)
     return MotionCommand(t=t, source=source, **fields)
@@ -282,7 +287,7 @@ def load_script(path: str | Path, *, source: str = "commands") -> tuple[MotionCo
             problems.extend(found)
             continue
         t = _time(data, where, found, required=True)
-        fields = _fields(data, where, found)
+        fields = motion_fields(data, where, found)
         if t is not None and latest is not None and t < latest[0]:
             found.append(
                 Problem(

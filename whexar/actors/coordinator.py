@@ -246,7 +246,6 @@ class Coordinator(Actor):
         self.margin = math.inf
         self.neutral_points: list[Vec3] = self.neutral(self._stance(self.stance_name))
         self.pose_now: tuple[float, ...] = (0.0,) * 6
-        self._pose_dt = 0.0
         self._pending_moves: list[tuple[int, Vec3, float]] = []
         self._pending_duration = 0.0
         self._clamp_said = False
@@ -426,38 +425,36 @@ class Coordinator(Actor):
 
     def _limit_walk(self, twist: tuple[float, float, float]) -> tuple[float, float, float]:
         _, v_max = self._gait_limits(self.gait)
-        fastest = max(self._foot_speeds(twist), default=0.0)
-        if fastest <= v_max:
-            return twist
-        k = v_max / fastest
-        if not self._clamp_said:
-            self._clamp_said = True
-            self._clamped(
-                "speed",
-                fastest,
-                v_max,
-                f"the {self.gait.name} gait's fastest foot: max_step_length_mm in the "
-                "shortest cycle (min_swing_s)",
-            )
-        return twist[0] * k, twist[1] * k, twist[2] * k
+        why = (
+            f"the {self.gait.name} gait's fastest foot: max_step_length_mm in the "
+            "shortest cycle (min_swing_s)"
+        )
+        return self._scaled(twist, v_max, why)
 
     def _limit_ride(self, twist: tuple[float, float, float]) -> tuple[float, float, float]:
         # The fastest wheel: the configured top speed, or what the wheel servo's Velocity
         # Limit (44) turns the wheel at, whichever is lower; beyond it the bus would clamp.
         wheel_max = self.wheel_rate_max * self.geometry.wheel_radius
         v_max = min(self.loco.ride_max_speed_m_s, wheel_max)
+        why = (
+            "locomotion.ride_max_speed_m_s (6.5.1)"
+            if v_max == self.loco.ride_max_speed_m_s
+            else "the wheel servo's Velocity Limit"
+        )
+        return self._scaled(twist, v_max, why)
+
+    def _scaled(
+        self, twist: tuple[float, float, float], v_max: float, why: str
+    ) -> tuple[float, float, float]:
+        """``twist`` scaled down so that no foot (or wheel) moves faster than ``v_max`` over
+        the ground; said once per command (:class:`CommandClamped`)."""
         fastest = max(self._foot_speeds(twist), default=0.0)
         if fastest <= v_max:
             return twist
-        k = v_max / fastest
         if not self._clamp_said:
             self._clamp_said = True
-            why = (
-                "locomotion.ride_max_speed_m_s (6.5.1)"
-                if v_max == self.loco.ride_max_speed_m_s
-                else "the wheel servo's Velocity Limit"
-            )
             self._clamped("speed", fastest, v_max, why)
+        k = v_max / fastest
         return twist[0] * k, twist[1] * k, twist[2] * k
 
     def _ramp_twist(
@@ -525,15 +522,7 @@ class Coordinator(Actor):
 
     def _set_activity(self, activity: str) -> None:
         if activity != self.activity:
-            self.emit(
-                LocomotionChanged(
-                    t=self.t,
-                    source=self.name,
-                    what="activity",
-                    before=self.activity,
-                    after=activity,
-                )
-            )
+            self._changed("activity", self.activity, activity)
             self.activity = activity
 
     def _changed(self, what: str, before: str, after: str) -> None:
@@ -1058,7 +1047,7 @@ class Coordinator(Actor):
     def _pose_step(self, target: tuple[float, ...]) -> tuple[float, ...]:
         """Move the body pose toward ``target`` at a rate that covers the full range in
         ``transition_s``: 0.1 m and 20° per transition."""
-        dt = self._pose_dt
+        dt = self.dt
         rates = (0.1, 0.1, 0.1, math.radians(20), math.radians(20), math.radians(20))
         return tuple(
             _ramp(a, b, r * dt / self.loco.transition_s)
@@ -1071,7 +1060,6 @@ class Coordinator(Actor):
         self.ready()
         try:
             async for states in self.servo_state:
-                self._pose_dt = 0.0 if self.last_t is None else states.t - self.last_t
                 await self._tick(states)
         finally:
             with self.shielded():

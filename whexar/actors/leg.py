@@ -250,7 +250,6 @@ class LegActor(Actor):
         """The last good positioning angles (coxa…tarsus) sent."""
         self.measured: list[float | None] = [None] * N_JOINTS
         self.currents: list[float | None] = [None] * N_JOINTS
-        self.index: list[int] | None = None
         self.step: _Step | None = None
         self.twist = (0.0, 0.0, 0.0)
         self.pose: tuple[float, ...] = (0.0,) * 6
@@ -389,21 +388,14 @@ class LegActor(Actor):
             self.foot = list(origin)
 
     def _take_state(self, states: ServoStates) -> None:
-        joints = states.joints
-        index = self.index
-        if (
-            index is None
-            or len(index) != N_JOINTS
-            or any(i >= len(joints) or joints[i].leg != self.leg for i in index)
-        ):
-            index = [i for i, j in enumerate(joints) if j.leg == self.leg]
-            index.sort(key=lambda i: joints[i].joint)
-            self.index = index if len(index) == N_JOINTS else None
-        for i in index:
-            j = joints[i]
-            if j.position_rad is not None:
-                self.measured[j.joint] = j.position_rad
-            self.currents[j.joint] = j.current_a
+        # Which joints a cycle carries depends on the read plan's rates: look for this
+        # leg's in every cycle (42 entries) rather than keep an index that rarely holds.
+        leg = self.leg
+        for j in states.joints:
+            if j.leg == leg:
+                if j.position_rad is not None:
+                    self.measured[j.joint] = j.position_rad
+                self.currents[j.joint] = j.current_a
 
     def _take_loads(self, t: float) -> None:
         if not self.loads.connected:

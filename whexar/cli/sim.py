@@ -28,7 +28,6 @@ import math
 import os
 import shutil
 import sys
-import time
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
@@ -36,6 +35,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 from whexar.cli.common import Commands, print_json, seconds
 from whexar.errors import ConfigError, UsageError
+from whexar.runtime.clock import monotonic, wait_until
 
 if TYPE_CHECKING:
     from whexar.sim.run import Sample
@@ -91,7 +91,7 @@ class Progress:
         self._recent: deque[Sample] = deque()
         self._drawn_at = -math.inf
         self._logged_at = -math.inf
-        self._wall = time.perf_counter()
+        self._wall = monotonic()
 
     def __call__(self, sample: Sample, world: SimWorld) -> None:
         """Take one sample; redraw the line when it is due."""
@@ -105,7 +105,7 @@ class Progress:
         while self._recent and self._recent[0].t < sample.t - 1.0:
             self._recent.popleft()
         if self.live:
-            now = time.perf_counter()
+            now = monotonic()
             if now - self._drawn_at >= REDRAW_S:
                 self._drawn_at = now
                 # A line that wraps cannot be redrawn in place: keep it within the terminal.
@@ -121,7 +121,7 @@ class Progress:
         dt = s.t - first.t
         speed = math.hypot(s.x - first.x, s.y - first.y) / dt if dt > 0 else 0.0
         fallen = "  FALLEN" if max(abs(s.roll), abs(s.pitch)) > FALLEN_TILT_RAD else ""
-        rtf = s.t / max(1e-9, time.perf_counter() - self._wall)
+        rtf = s.t / max(1e-9, monotonic() - self._wall)
         doing = s.activity or f"{self.mode}/{self.gait}"
         event = f"  {s.event}" if s.event else ""
         return (
@@ -154,13 +154,11 @@ class Viewer:
 
         if self._handle is None:
             self._handle = mujoco.viewer.launch_passive(world.model, world.data)
-            self._start, self._t0 = time.perf_counter(), sample.t
+            self._start, self._t0 = monotonic(), sample.t
         if not self._handle.is_running():
             return
         self._handle.sync()
-        ahead = (sample.t - self._t0) - (time.perf_counter() - self._start)
-        if ahead > 0:
-            time.sleep(ahead)
+        wait_until(self._start + (sample.t - self._t0))  # real time catches up
 
     def close(self) -> None:
         """Close the window."""

@@ -390,8 +390,10 @@ def run(
 def monotonic() -> float:
     """Wall-clock seconds (arbitrary origin) for code outside any event loop.
 
-    Only real-time device emulators and port-owning threads use this: a
-    device emulated in real time must take the time the device takes.
+    Only real-time device emulators, port-owning threads and what reports how a
+    run kept up with real time (a simulation's real-time factor, a viewer's
+    pace) use this: a device emulated in real time must take the time the
+    device takes.
     """
     return time.perf_counter()
 

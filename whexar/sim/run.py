@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +37,7 @@ from whexar.config import RobotConfig, load_config
 from whexar.kinematics.body import Stance, stance_feet
 from whexar.kinematics.leg import ik
 from whexar.robot import LEG_NAMES
+from whexar.runtime.clock import monotonic
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorReady, ActorStarting, Event
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
@@ -47,6 +47,7 @@ from whexar.sim.model import load_model
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
 from whexar.testing.harness import Harness, RunResult, run_actors
+from whexar.testing.walk import walk_graph
 
 Quiet = (ActorStarting, ActorReady, AccelImplausible, AccelPlausible)
 """Events too routine for the progress line."""
@@ -151,78 +152,17 @@ def seated_angles(cfg: RobotConfig) -> dict[tuple[int, int], float]:
 def sim_graph(name: str, *, faults: str | None = None, config: str | None = None) -> dict[str, Any]:
     """The robot's actor graph on the devices registered as ``name``; commands are fed.
 
-    ``config`` is the robot configuration file every actor reads (default: the built-in)."""
-    cfg: dict[str, Any] = {"config": config} if config else {}
-    bus_params: dict[str, Any] = {"port": f"emulator:{name}", "plan": "default", **cfg}
-    if faults:
-        bus_params["faults"] = faults
-    actors: list[dict[str, Any]] = [
-        {
-            "name": "bus",
-            "class": "whexar.actors.bus:BusScheduler",
-            "params": bus_params,
-            "inputs": {"goals": "goals"},
-            "outputs": {"state": "servo-state"},
-        },
-        {
-            "name": "sensors",
-            "class": "whexar.actors.sensors:SensorReader",
-            "params": {"port": f"emulator:{name}", **cfg},
-            "outputs": {"loads": "loads", "ranges": "ranges"},
-        },
-        {
-            "name": "imu",
-            "class": "whexar.actors.imu:ImuReader",
-            "params": {"device": f"fake:{name}", **cfg},
-            "outputs": {"tilt": "tilt"},
-        },
-    ]
-    for leg in LEG_NAMES:
-        actors.append(
-            {
-                "name": f"leg-{leg}",
-                "class": "whexar.actors.leg:LegActor",
-                "inputs": {
-                    "servo_state": "servo-state",
-                    "steps": "steps",
-                    "motion": "motion",
-                    "loads": "loads",
-                },
-                "outputs": {"goals": "goals", "state": "legs"},
-                "params": {"leg": leg, **cfg},
-            }
-        )
-    actors.append(
-        {
-            "name": "coordinator",
-            "class": "whexar.actors.coordinator:Coordinator",
-            "inputs": {
-                "servo_state": "servo-state",
-                "commands": "commands",
-                "legs": "legs",
-                "tilt": "tilt",
-            },
-            "outputs": {"steps": "steps", "motion": "motion", "state": "locomotion"},
-            "params": dict(cfg),
-        }
+    The graph of the locomotion tests (:func:`whexar.testing.walk.walk_graph`) with the
+    sensor board and the IMU: ``config`` is the robot configuration file every actor
+    reads (default: the built-in), ``faults`` a bus fault plan."""
+    bus: dict[str, Any] = {"plan": "default", **({"faults": faults} if faults else {})}
+    return walk_graph(
+        f"emulator:{name}",
+        config=config,
+        bus_params=bus,
+        sensors=f"emulator:{name}",
+        imu=f"fake:{name}",
     )
-    channels = {
-        "goals": ("JointGoals", "queue"),
-        "servo-state": ("ServoStates", "latest"),
-        "loads": ("LegLoads", "latest"),
-        "ranges": ("ObstacleRanges", "latest"),
-        "tilt": ("BodyTilt", "latest"),
-        "steps": ("StepCommand", "queue"),
-        "motion": ("BodyMotion", "latest"),
-        "legs": ("LegState", "queue"),
-        "locomotion": ("LocomotionState", "latest"),
-        "commands": ("MotionCommand", "queue"),
-    }
-    return {
-        "runtime": {"stop_timeout_s": 3.0, "ready_timeout_s": 10.0},
-        "actors": actors,
-        "channels": {k: {"message": m, "policy": p} for k, (m, p) in channels.items()},
-    }
 
 
 def _tilt(quat: tuple[float, float, float, float]) -> tuple[float, float, float]:
@@ -275,7 +215,6 @@ def simulate(
     )
     name = DEVICE_NAME  # one run per process at a time; the same name keeps logs comparable
     samples: list[Sample] = []
-    power = [0.0]
 
     @dataclass
     class _Seen:
@@ -354,7 +293,7 @@ def simulate(
             t += SAMPLE_PERIOD_S
             await h.sleep_until(t)
 
-    wall = time.perf_counter()
+    wall = monotonic()  # the real-time factor's denominator
     with (
         DEVICES.registered(SERVO_CHAIN, name, chain),
         DEVICES.registered(SENSOR_BOARD, name, board),
@@ -370,12 +309,11 @@ def simulate(
             scenario=scenario,
             feeds=["commands"],
         )
-    del power
     return SimResult(
         samples=samples,
         run=result,
         world=world,
-        wall_s=time.perf_counter() - wall,
+        wall_s=monotonic() - wall,
         duration_s=duration,
         mass_kg=cfg.robot.mass_kg,
         events=result.log.events(),

@@ -64,7 +64,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Final
 
 from pydantic import AfterValidator, Discriminator, Field, Tag, ValidationError
 
-from whexar.actors.commands import MOTION_FIELDS
+from whexar.actors.commands import motion_fields
 from whexar.actors.messages import MotionCommand
 from whexar.config import RobotConfig, load_config
 from whexar.errors import MISSING, ConfigError, Problem, UsageError
@@ -504,20 +504,7 @@ def check_commands(
             )
         else:
             latest = float(t)
-        fields: dict[str, Any] = {}
-        for key, value in table.items():
-            if key == "t":
-                continue
-            spec = MOTION_FIELDS.get(key)
-            if spec is None:
-                known = ", ".join(("t", *MOTION_FIELDS))
-                found.append(Problem(f"{at}.{key}", value, f"unknown key; allowed here: {known}"))
-                continue
-            allowed = spec.problem(value)
-            if allowed is not None:
-                found.append(Problem(f"{at}.{key}", value, allowed))
-            else:
-                fields[key] = float(value) if spec.base is float and value is not None else value
+        fields = motion_fields(table, at, found, sep=".")
         stance = fields.get("stance")
         if stance is not None and stance not in cfg.stances:
             found.append(

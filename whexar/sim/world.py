@@ -41,6 +41,7 @@ pitch (nose down positive).
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -222,6 +223,9 @@ class SimWorld:
         self._wheel_geoms = [
             mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_wheel") for leg in LEG_NAMES
         ]
+        self._wheel_of = {g: leg for leg, g in enumerate(self._wheel_geoms)}
+        self._wrench = np.zeros(6)
+        self._ray_geom = np.zeros(1, dtype=np.int32)
         self._ir_sites = [
             mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, name)
             for name in ("ir_right", "ir_left")
@@ -401,8 +405,8 @@ class SimWorld:
         self._sensed_at = self.time
         m, d = self.model, self.data
         forces = [0.0] * 6
-        wrench = np.zeros(6)
-        wheels = {g: i for i, g in enumerate(self._wheel_geoms)}
+        wrench = self._wrench
+        wheels = self._wheel_of
         for k in range(d.ncon):
             c = d.contact[k]
             leg = wheels.get(int(c.geom1), wheels.get(int(c.geom2)))
@@ -411,7 +415,7 @@ class SimWorld:
             mujoco.mj_contactForce(m, d, k, wrench)
             forces[leg] += abs(float(wrench[0]))  # the normal force, in the contact frame
         self.fsr_counts = [0 if i in self.dead_fsr else fsr_counts(f) for i, f in enumerate(forces)]
-        geom = np.zeros(1, dtype=np.int32)
+        geom = self._ray_geom
         ir = self.cfg.ir
         counts = []
         for site in self._ir_sites:
@@ -475,8 +479,6 @@ class SimWorld:
 
     def state_hash(self) -> str:
         """A hash of the world's full state: equal runs give equal hashes, bit for bit."""
-        import hashlib
-
         h = hashlib.sha256()
         for array in (self.data.qpos, self.data.qvel, self.data.act):
             h.update(np.ascontiguousarray(array).tobytes())

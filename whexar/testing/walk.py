@@ -26,6 +26,8 @@ WALK_CHANNELS: dict[str, dict[str, Any]] = {
     "commands": {"message": "MotionCommand", "policy": "queue"},
     "reflex": {"message": "JointGoals", "policy": "queue"},
     "tilt": {"message": "BodyTilt", "policy": "latest"},
+    "loads": {"message": "LegLoads", "policy": "latest"},
+    "ranges": {"message": "ObstacleRanges", "policy": "latest"},
 }
 
 
@@ -37,14 +39,20 @@ def walk_graph(
     leg_params: Mapping[str, Any] | None = None,
     reflex: bool = False,
     tilt: bool = False,
+    sensors: str | None = None,
+    imu: str | None = None,
     stop_timeout_s: float = 3.0,
 ) -> dict[str, Any]:
     """A wiring document: bus on ``port``, six legs, the coordinator; ``commands`` fed.
 
     ``reflex`` wires a ``reflex`` channel into every leg and ``tilt`` a ``tilt`` channel
-    (:class:`BodyTilt`) into the coordinator, both for a scenario to feed.
+    (:class:`BodyTilt`) into the coordinator, both for a scenario to feed. ``sensors``
+    (a board port) adds the sensor reader, whose force sensors reach the legs (which then
+    sense contact as ``locomotion.contact`` says; without a board they sense none), and
+    ``imu`` (a fake I²C device) the IMU reader, whose tilt reaches the coordinator.
     """
     cfg = {"config": config} if config else {}
+    tilt = tilt or imu is not None
     actors: list[dict[str, Any]] = [
         {
             "name": "bus",
@@ -54,15 +62,36 @@ def walk_graph(
             "outputs": {"state": "servo-state"},
         }
     ]
+    if sensors is not None:
+        actors.append(
+            {
+                "name": "sensors",
+                "class": "whexar.actors.sensors:SensorReader",
+                "params": {"port": sensors, **cfg},
+                "outputs": {"loads": "loads", "ranges": "ranges"},
+            }
+        )
+    if imu is not None:
+        actors.append(
+            {
+                "name": "imu",
+                "class": "whexar.actors.imu:ImuReader",
+                "params": {"device": imu, **cfg},
+                "outputs": {"tilt": "tilt"},
+            }
+        )
+    contact = {} if sensors is not None else {"contact": "none"}
     for leg in LEG_NAMES:
         inputs = {"servo_state": "servo-state", "steps": "steps", "motion": "motion"}
+        if sensors is not None:
+            inputs["loads"] = "loads"
         if reflex:
             inputs["reflex"] = "reflex"
         actors.append(
             {
                 "name": f"leg-{leg}",
                 "class": "whexar.actors.leg:LegActor",
-                "params": {"leg": leg, "contact": "none", **cfg, **(leg_params or {})},
+                "params": {"leg": leg, **contact, **cfg, **(leg_params or {})},
                 "inputs": inputs,
                 "outputs": {"goals": "goals", "state": "legs"},
             }
@@ -81,7 +110,8 @@ def walk_graph(
             "outputs": {"steps": "steps", "motion": "motion", "state": "locomotion"},
         }
     )
-    names = [n for n in WALK_CHANNELS if (reflex or n != "reflex") and (tilt or n != "tilt")]
+    wanted = {"reflex": reflex, "tilt": tilt, "loads": sensors, "ranges": sensors}
+    names = [n for n in WALK_CHANNELS if wanted.get(n, True)]
     return {
         "runtime": {"stop_timeout_s": stop_timeout_s, "ready_timeout_s": 10.0},
         "actors": actors,
