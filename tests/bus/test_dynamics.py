@@ -3,6 +3,7 @@
 import math
 
 from whexar.bus.control_table import MODELS
+from whexar.bus.emulator.chain import ServoChain
 from whexar.bus.emulator.dynamics import Drive, Motion, TrapezoidalProfile
 from whexar.bus.emulator.servo import VirtualServo
 
@@ -68,3 +69,26 @@ def test_without_torque_the_horn_stops_where_it_is() -> None:
     )
     TrapezoidalProfile().advance(motion, limp, 1.0)
     assert motion == Motion(position=10.0, velocity=0.0, acceleration=0.0)
+
+
+def test_a_chain_mover_moves_every_servo_at_once_and_the_firmware_still_supervises() -> None:
+    """A physics world as the chain's mover: one call per transaction, each servo follows."""
+    chain = ServoChain.for_models({1: "MX-64", 2: "MX-106"})
+    calls: list[float] = []
+
+    def mover(t: float) -> None:
+        calls.append(t)
+        for k, servo in enumerate(chain.servos.values()):
+            servo.follow(t, 1000.0 + k, 0.0, 0.0)
+
+    chain.mover = mover
+    one = chain.servos[1]
+    _write(one, "bus_watchdog", 5)  # 100 ms
+    _write(one, "torque_enable", 1)
+    _write(one, "goal_position", 1000)
+    chain.advance(0.05)
+    assert calls == [0.05]
+    assert [s.register_value("present_position") for s in chain.servos.values()] == [1000, 1001]
+    assert one.register_value("moving_status") & 1  # in position: the profile ended
+    chain.advance(0.2)  # nothing heard for 200 ms: the watchdog still trips
+    assert one.register_value("bus_watchdog") == -1  # the watchdog error (e-manual)

@@ -7,13 +7,15 @@ scheduler talks to an emulated servo chain through dynamixel-sdk, the sensor
 reader decodes the emulated board's frames, the IMU reader reads a fake
 LSM9DS1. :class:`SimWorld` puts a MuJoCo model behind all three.
 
-*Time.* Nothing advances the world but the bus: every transaction brings each
-virtual servo's dynamics up to the transaction's bus time
-(:meth:`~whexar.bus.emulator.servo.VirtualServo.advance`), and each servo's
-dynamics here is the world's joint (:class:`_JointDynamics`), which first
-steps the world to that time. A transaction taking 6 ms of wire time costs
-6 ms of simulated time; on virtual time the whole run is deterministic. The
-world steps in whole timesteps, so it lags bus time by less than one.
+*Time.* Nothing advances the world but the bus: every transaction brings the
+servos up to the transaction's bus time, and here the world does it as the
+chain's :attr:`~whexar.bus.emulator.chain.ServoChain.mover`
+(:meth:`SimWorld.move_servos`): it steps itself to that time, then hands each
+servo its joint's state (:meth:`~whexar.bus.emulator.servo.VirtualServo.follow`).
+A servo advanced on its own reads its joint through :class:`_JointDynamics`.
+A transaction taking 6 ms of wire time costs 6 ms of simulated time; on
+virtual time the whole run is deterministic. The world steps in whole
+timesteps, so it lags bus time by less than one.
 
 *Servos.* Each step, every joint's torque is what an MX servo's firmware and
 motor make of its control table (:mod:`whexar.sim.motors`):
@@ -124,16 +126,20 @@ class _JointDynamics:
         self.joint = joint
 
     def advance(self, motion: Motion, drive: Drive, dt: float) -> None:
-        """Step the world to the servo's time, then read the joint."""
+        """Step the world to the servo's time, then read the joint.
+
+        A servo advanced by itself (a test, a watchdog's expiry) comes here; the
+        chain's transactions move every servo at once (:meth:`SimWorld.move_servos`).
+        """
         j = self.joint
         world = self.world
         t = j.servo.time
-        if world.time + world.h <= t + 1e-12:  # the first servo of a transaction steps it
+        if world.time + world.h <= t + 1e-12:
             world.advance_to(t)
         k = j.index
-        motion.position = world.q[k] * TICKS_PER_RAD + ct.CENTER_TICKS
-        motion.velocity = world.w[k] * TICKS_PER_RAD
-        motion.acceleration = world.accel[k] * TICKS_PER_RAD
+        motion.position = world.position_ticks[k]
+        motion.velocity = world.velocity_ticks[k]
+        motion.acceleration = world.accel_ticks[k]
 
 
 class SimWorld:
@@ -194,10 +200,20 @@ class SimWorld:
                 self.by_servo[sid] = joint
                 servo.dynamics = _JointDynamics(self, joint)
         n = len(self.joints)
-        self._qadr = np.array([j.qadr for j in self.joints])
-        self._dadr = np.array([j.dadr for j in self.joints])
-        self._act = np.array([j.actuator for j in self.joints])
+        self._servos = [j.servo for j in self.joints]
+        self._others = [s for s in chain.servos.values() if s not in self._servos]
+        """Servos on the chain that drive no joint of the world: their own dynamics."""
+        chain.mover = self.move_servos
+        self._qadr = _index([j.qadr for j in self.joints])
+        self._dadr = _index([j.dadr for j in self.joints])
+        self._act = _index([j.actuator for j in self.joints])
         self._kt = np.array([j.kt for j in self.joints])
+        # Present Current is τ / kt; the MX-28's Present Load is that over its stall current.
+        self._load_scale = np.array(
+            [1.0 if j.amps_unit is not None else j.stall_current for j in self.joints]
+        )
+        self._index_of: dict[ServoView, int] = {j.servo: j.index for j in self.joints}
+        self._amps: list[float] = [0.0] * n
         self._resistance = np.array([j.resistance for j in self.joints])
         self._on = np.zeros(n, dtype=bool)
         self._velocity_mode = np.zeros(n, dtype=bool)
@@ -215,8 +231,11 @@ class SimWorld:
         self._ramped = False
         self._drive_gain, self._emf_gain = np.zeros(n), np.zeros(n)
         self.q: list[float] = [0.0] * n
-        self.w: list[float] = [0.0] * n
-        self.accel: list[float] = [0.0] * n
+        """The joints' angles, rad, in :attr:`joints` order."""
+        # What the servos are told, in their units (ticks, ticks/s, ticks/s²).
+        self.position_ticks: list[float] = [0.0] * n
+        self.velocity_ticks: list[float] = [0.0] * n
+        self.accel_ticks: list[float] = [0.0] * n
         chain.load_model = self._current
         self._base = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "base")
         self._imu_site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "imu")
@@ -272,10 +291,26 @@ class SimWorld:
         d = self.data
         self._desired = d.qpos[self._qadr].copy()
         self._desired_v = np.zeros(len(self.joints))
-        self.q = d.qpos[self._qadr].tolist()
-        self.w = d.qvel[self._dadr].tolist()
+        self._read_joints(d.qpos[self._qadr], d.qvel[self._dadr], np.zeros(len(self.joints)))
         for j in self.joints:
-            j.servo.set_state(self.q[j.index] * TICKS_PER_RAD + ct.CENTER_TICKS, 0.0)
+            j.servo.set_state(self.position_ticks[j.index], 0.0)
+
+    def _read_joints(self, q: np.ndarray, w: np.ndarray, accel: np.ndarray) -> None:
+        self.q = q.tolist()
+        self.position_ticks = (q * TICKS_PER_RAD + ct.CENTER_TICKS).tolist()
+        self.velocity_ticks = (w * TICKS_PER_RAD).tolist()
+        self.accel_ticks = (accel * TICKS_PER_RAD).tolist()
+
+    def move_servos(self, t: float) -> None:
+        """The chain's :attr:`~whexar.bus.emulator.chain.ServoChain.mover`: step the world
+        to bus time ``t``, then hand every servo its joint's state."""
+        self.advance_to(t)
+        for servo, position, velocity, accel in zip(
+            self._servos, self.position_ticks, self.velocity_ticks, self.accel_ticks, strict=True
+        ):
+            servo.follow(t, position, velocity, accel)
+        for servo in self._others:
+            servo.advance(t)
 
     # ----------------------------------------------------------------- stepping
 
@@ -286,18 +321,17 @@ class SimWorld:
         self._orders()
         m, d, h = self.model, self.data, self.h
         qadr, dadr, act = self._qadr, self._dadr, self._act
-        start, w0 = self.time, d.qvel[dadr]
+        start, w0 = self.time, d.qvel[dadr].copy()  # a view when dadr is a slice
         while self.time + h <= t + 1e-12:
             d.ctrl[act] = self._control(d.qpos[qadr], d.qvel[dadr])
             mujoco.mj_step(m, d)
             self.steps += 1
             self.time = self.steps * h
         w1 = d.qvel[dadr]
-        self.q = d.qpos[qadr].tolist()
-        self.w = w1.tolist()
+        self._amps = (self._torque / self._kt / self._load_scale).tolist()
         # The mean acceleration since the last transaction: what the servo's Moving and
         # profile registers are told (no register reports acceleration itself).
-        self.accel = ((w1 - w0) / (self.time - start)).tolist()
+        self._read_joints(d.qpos[qadr], w1, (w1 - w0) / (self.time - start))
         if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
             self._sense()
 
@@ -395,9 +429,7 @@ class SimWorld:
 
     def _current(self, servo: ServoView, t: float) -> float:
         """Present Current (A), or for the MX-28 its Present Load as a fraction of stall."""
-        j = self.by_servo[servo.id]
-        amps = float(self._torque[j.index]) / j.kt
-        return amps if j.amps_unit is not None else amps / j.stall_current
+        return self._amps[self._index_of[servo]]
 
     # ----------------------------------------------------------------- sensors
 
@@ -484,6 +516,15 @@ class SimWorld:
             h.update(np.ascontiguousarray(array).tobytes())
         h.update(repr(self.time).encode())
         return h.hexdigest()
+
+
+def _index(addresses: list[int]) -> slice | np.ndarray:
+    """``addresses`` as a slice when they run on without a gap (a view, cheaper than an
+    index array at every step), else as an index array."""
+    first = addresses[0]
+    if addresses == list(range(first, first + len(addresses))):
+        return slice(first, first + len(addresses))
+    return np.array(addresses)
 
 
 ROBOT_GEOM_GROUP: Final = 3

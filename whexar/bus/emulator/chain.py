@@ -11,7 +11,8 @@ bus busy. In order:
    servo ignores it, and counted);
 2. bring every servo's dynamics up to ``t``
    (:meth:`~whexar.bus.emulator.servo.VirtualServo.advance` is lazy and
-   exact: nothing moves between transactions, nothing is sampled);
+   exact: nothing moves between transactions, nothing is sampled), or let
+   the :attr:`~ServoChain.mover` (a physics world) move them all at once;
 3. run the hooks (fault plans, a physics world) with ``t`` and the packets;
 4. execute each instruction as the e-manual describes (broadcast rules,
    Status Return Level, the group reads and writes; each servo applies its
@@ -143,6 +144,7 @@ class ServoChain:
         load_model: LoadModel | None = None,
     ) -> None:
         self._all = list(servos)
+        self._ids: list[int] | None = None
         self.servos: dict[int, VirtualServo] = {}
         self._ordered: list[VirtualServo] = []
         self._rekey()
@@ -151,6 +153,10 @@ class ServoChain:
         self.load_model = load_model
         self.faults = FaultState()
         self.hooks: list[Hook] = []
+        self.mover: Callable[[float], None] | None = None
+        """A physics world that moves every servo's horn at once: ``mover(t)`` replaces
+        advancing each servo's :attr:`~VirtualServo.dynamics` (it calls
+        :meth:`VirtualServo.follow` on each); ``None``: each servo's own dynamics."""
         self.stats = ChainStats()
         self._decoder = PacketDecoder(max_length=0xFFFF)
 
@@ -195,14 +201,19 @@ class ServoChain:
         return cls(servos, timing or TimingModel(baudrate=baudrate), load_model)
 
     def _rekey(self) -> None:
-        if len(self.servos) == len(self._all) and all(k == s.id for k, s in self.servos.items()):
+        ids = [s.table[7] for s in self._all]  # ID (7): a write may have changed one
+        if ids == self._ids:
             return
+        self._ids = ids
         # On a duplicated ID the later servo wins, as a scan would find only one.
         self.servos = {s.id: s for s in self._all}
         self._ordered = sorted(self.servos.values(), key=lambda s: s.id)
 
     def advance(self, t: float) -> None:
-        """Bring every servo's dynamics up to bus time ``t``."""
+        """Bring every servo's dynamics up to bus time ``t`` (through :attr:`mover` if set)."""
+        if self.mover is not None:
+            self.mover(t)
+            return
         for servo in self._all:
             servo.advance(t)
 
@@ -310,22 +321,27 @@ class ServoChain:
 
     # ----------------------------------------------------------------- instructions
 
+    def _hearing(self, t: float) -> dict[int, VirtualServo]:
+        """The servos that hear a broadcast packet at ``t`` by ID, in ID order (:meth:`_hears`)."""
+        return {s.id: s for s in self._ordered if self._hears(s, t)}
+
     def _execute(self, p: Packet, t: float) -> tuple[list[_Reply], bool]:
         inst = p.instruction
         broadcast = p.id == BROADCAST_ID
         if broadcast:
-            targets = [s for s in self._ordered if self._hears(s, t)]
+            hearing = self._hearing(t)
+            if inst in _GROUP_READS:
+                return self._group_read(p, hearing)
+            if inst == Instruction.SYNC_WRITE:
+                self._sync_write(p, hearing)
+                return [], False
+            if inst == Instruction.BULK_WRITE:
+                self._bulk_write(p, hearing)
+                return [], False
+            targets = list(hearing.values())
         else:
             one = self.servos.get(p.id)
             targets = [one] if one is not None and self._hears(one, t) else []
-        if broadcast and inst in _GROUP_READS:
-            return self._group_read(p, t)
-        if broadcast and inst == Instruction.SYNC_WRITE:
-            self._sync_write(p, t)
-            return [], False
-        if broadcast and inst == Instruction.BULK_WRITE:
-            self._bulk_write(p, t)
-            return [], False
         out: list[_Reply] = []
 
         def answer(servo: VirtualServo, error: int, params: bytes = b"", level: int = 2) -> None:
@@ -390,31 +406,32 @@ class ServoChain:
                 answer(servo, StatusError.INSTRUCTION)
         return out, False
 
-    def _sync_write(self, p: Packet, t: float) -> None:
+    def _sync_write(self, p: Packet, hearing: dict[int, VirtualServo]) -> None:
         try:
             start, _, entries = parse_sync_write_params(p.params)
         except PacketError:
             self.stats.bad_requests += 1
             return
-        servos = self.servos
         for servo_id, data in entries:
-            servo = servos.get(servo_id)
-            if servo is not None and self._hears(servo, t):
+            servo = hearing.get(servo_id)
+            if servo is not None:
                 servo.write(start, data)
 
-    def _bulk_write(self, p: Packet, t: float) -> None:
+    def _bulk_write(self, p: Packet, hearing: dict[int, VirtualServo]) -> None:
         try:
             entries = parse_bulk_write_params(p.params)
         except PacketError:
             self.stats.bad_requests += 1
             return
         for servo_id, start, data in entries:
-            servo = self.servos.get(servo_id)
-            if servo is not None and self._hears(servo, t):
+            servo = hearing.get(servo_id)
+            if servo is not None:
                 servo.write(start, data)
 
-    def _group_read(self, p: Packet, t: float) -> tuple[list[_Reply], bool]:
-        """(Fast) Sync/Bulk Read: replies in the order the instruction lists the IDs (e-manual)."""
+    def _group_read(self, p: Packet, hearing: dict[int, VirtualServo]) -> tuple[list[_Reply], bool]:
+        """(Fast) Sync/Bulk Read: replies in the order the instruction lists the IDs (e-manual).
+
+        ``hearing``: the servos that heard the packet (:meth:`_hearing`)."""
         fast = p.instruction in (Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ)
         try:
             if p.instruction in (Instruction.SYNC_READ, Instruction.FAST_SYNC_READ):
@@ -428,10 +445,9 @@ class ServoChain:
         entries: list[tuple[int, int, bytes]] = []
         answering: list[VirtualServo | None] = []
         for servo_id, start, length in wanted:
-            servo = self.servos.get(servo_id)
+            servo = hearing.get(servo_id)
             ok = (
                 servo is not None
-                and self._hears(servo, t)
                 and servo.status_return_level >= 1
                 # A servo whose firmware lacks Fast Sync/Bulk Read does not know the
                 # instruction, and stays silent as for any broadcast it cannot execute.

@@ -355,6 +355,8 @@ class VirtualServo:
         self._temp_limit = t[31]
         max_v, min_v = struct.unpack_from("<HH", t, 32)
         self._max_v, self._min_v = max_v * VOLTAGE_UNIT_V, min_v * VOLTAGE_UNIT_V
+        # The supply's accepted band as :meth:`_supervise` compares it, every transaction.
+        self._volts_lo, self._volts_hi = self._min_v - 1e-9, self._max_v + 1e-9
         self._pwm_limit, self._current_limit = struct.unpack_from("<HH", t, 36)
         (self._vel_limit,) = struct.unpack_from("<I", t, 44)
         self._max_pos, self._min_pos = struct.unpack_from("<ii", t, 48)
@@ -364,6 +366,7 @@ class VirtualServo:
         (self._goal_velocity,) = struct.unpack_from("<i", t, 104)
         self._prof_acc, self._prof_vel = struct.unpack_from("<II", t, 108)
         self._watchdog = t[98] if t[98] < 128 else 0  # −1 (error) monitors nothing
+        self._watchdog_s = self._watchdog * WATCHDOG_UNIT_S
         self._drive = None
 
     # ----------------------------------------------------------------- dynamics
@@ -371,26 +374,54 @@ class VirtualServo:
     def advance(self, t: float) -> None:
         """Integrate the dynamics up to bus time ``t`` (earlier times are ignored).
 
+        The firmware's supervision comes first (:meth:`_supervise`).
+        """
+        self._supervise(t)
+        self._move(t)
+
+    def _supervise(self, t: float) -> None:
+        """The firmware's checks up to ``t``, before the horn moves there.
+
         Input Voltage Error follows the supply: it sets while the voltage is
         outside the limits and clears when it returns, unless Shutdown (63)
         latched it (default Shutdown 52 leaves it out, so torque stays on).
         The Bus Watchdog stops the servo at the moment it expires.
         """
-        volts = self.input_voltage_v
-        volts_ok = self._min_v - 1e-9 <= volts <= self._max_v + 1e-9
-        if not volts_ok and not self.table[70] & 1:
+        errors = self.table[70]
+        if self._volts_lo <= self.input_voltage_v <= self._volts_hi:
+            if errors & 1 and not self._shutdown & 1:
+                self.table[70] &= ~1 & 0xFF
+                self._dirty = True
+        elif not errors & 1:
             self.raise_error(HardwareError.INPUT_VOLTAGE)
-        elif volts_ok and self.table[70] & 1 and not self._shutdown & 1:
-            self.table[70] &= ~1 & 0xFF
-            self._dirty = True
         if self.temperature_c > self._temp_limit and not self.table[70] & 4:
             self.raise_error(HardwareError.OVERHEATING)
-        if self._watchdog > 0 and self._torque:
-            expiry = self._heard_at + self._watchdog * WATCHDOG_UNIT_S
+        if self._watchdog and self._torque:
+            expiry = self._heard_at + self._watchdog_s
             if expiry < t:
                 self._move(expiry)
                 self._trip_watchdog()
-        self._move(t)
+
+    def follow(self, t: float, position: float, velocity: float, acceleration: float) -> None:
+        """Advance to bus time ``t`` with the horn where a physics world has put it.
+
+        What :meth:`advance` does, with the motion given instead of asked of
+        :attr:`dynamics`: a world that moves every joint at once
+        (:attr:`ServoChain.mover <whexar.bus.emulator.chain.ServoChain.mover>`)
+        hands each servo its joint's state without a call per servo into it.
+        """
+        self._supervise(t)
+        if t <= self._t:
+            return
+        self._t = t
+        self._dirty = True
+        motion = self.motion
+        motion.position = position
+        motion.velocity = velocity
+        motion.acceleration = acceleration
+        if self._in_profile and position == self._goal and velocity == 0.0:
+            self._in_profile = False
+            self._drive = None
 
     def _move(self, t: float) -> None:
         dt = t - self._t
