@@ -178,6 +178,9 @@ _SURVEY = ct.block(
 _WHEEL_GOAL = ct.block(["goal_velocity"])
 _TORQUE_SPAN = ct.block(["torque_enable"])
 _RAD_PER_TICK: Final = ct.ticks_to_rad(ct.CENTER_TICKS + 1)
+_CENTER_TICKS: Final = ct.CENTER_TICKS
+_ABSURD_RAD: Final = ABSURD_TURNS * 2 * math.pi
+"""A position goal this far beyond a joint's limits is refused (``ABSURD_TURNS``)."""
 _RAD_S_PER_UNIT: Final = ct.velocity_to_rad_s(1)
 _pack_i32 = struct.Struct("<i").pack
 """Goal Position/Velocity bytes (signed 32-bit, little-endian); goals are clamped first."""
@@ -274,7 +277,7 @@ class _Read:
             if now < self.next_due:
                 return []
             self.next_due = max(self.next_due + 1.0 / self.spec.rate_hz, now)
-        live = [s for s in self.servos if s.live]
+        live = [s for s in self.servos if s.state == "ok"]  # s.live, inlined: every cycle
         chunk = self.spec.chunk
         if chunk is None or chunk >= len(live):
             return live
@@ -732,7 +735,7 @@ class BusScheduler(Actor):
             self._refuse(g, f"position_rad = {want!r} for {servo.name}: not a finite number")
             return
         sent = min(max(want, servo.lo), servo.hi)
-        if abs(want - sent) > ABSURD_TURNS * 2 * math.pi:
+        if abs(want - sent) > _ABSURD_RAD:
             self._refuse(
                 g,
                 f"position_rad = {want!r} for {servo.name}: more than a turn beyond its "
@@ -741,7 +744,7 @@ class BusScheduler(Actor):
             return
         if sent != want:
             self._clamped(servo, want, sent)
-        tick = ct.CENTER_TICKS + round(sent / _RAD_PER_TICK)  # ct.rad_to_ticks, inlined
+        tick = _CENTER_TICKS + round(sent / _RAD_PER_TICK)  # ct.rad_to_ticks, inlined
         servo.goal = servo.lo_tick if tick < servo.lo_tick else min(tick, servo.hi_tick)
 
     def _take_speed(self, servo: _Servo, g: JointGoal) -> None:
@@ -769,10 +772,11 @@ class BusScheduler(Actor):
         vel: dict[int, int] = {}
         stale = now - self.keepalive_s
         for s in self.servos.values():
-            if not s.live or s.goal is None:
+            goal = s.goal
+            if s.state != "ok" or goal is None:  # not s.live (inlined: every cycle, 42 servos)
                 continue
-            if s.goal != s.sent or s.addressed_at <= stale:
-                (vel if s.endless else pos)[s.id] = s.goal
+            if goal != s.sent or s.addressed_at <= stale:
+                (vel if s.endless else pos)[s.id] = goal
         writes = []
         if pos:
             writes.append(_Write(_GOAL_POSITION, pos))
@@ -799,9 +803,9 @@ class BusScheduler(Actor):
         self.cycle += 1
         self.counters["retries"] += outcome.retries
         self.counters["bytes"] += outcome.bytes
-        for req in requests:
-            for sid in req.ids:
-                self.servos[sid].addressed_at = t
+        for _, servos in due:
+            for s in servos:
+                s.addressed_at = t
         self._account_writes(t, writes, outcome.write_results)
         if outcome.fast_failures:
             self.fast_streak += 1
@@ -821,8 +825,9 @@ class BusScheduler(Actor):
         values: dict[int, dict[str, int]] = {}
         errors: dict[int, int] = {}
         for (read, _), res in zip(due, outcome.reads, strict=True):
+            decode = read.block.decode
             for sid, data in res.data.items():
-                decoded = read.block.decode(data)
+                decoded = decode(data)
                 if sid in values:
                     values[sid].update(decoded)
                 else:
@@ -864,13 +869,15 @@ class BusScheduler(Actor):
     ) -> None:
         joints = []
         servos = self.servos
+        center, rad_per_tick, rad_s_per_unit = _CENTER_TICKS, _RAD_PER_TICK, _RAD_S_PER_UNIT
         # The conversions of whexar.bus.control_table, inlined: 42 servos every cycle.
         for sid, regs in sorted(values.items()):
-            pos = regs.get("present_position")
-            vel = regs.get("present_velocity")
-            cur = regs.get("present_current")
+            get = regs.get
+            pos = get("present_position")
+            vel = get("present_velocity")
+            cur = get("present_current")
             if cur is None:
-                cur = regs.get("present_load")
+                cur = get("present_load")
             if pos is None and vel is None and cur is None:
                 continue
             s = servos[sid]
@@ -879,8 +886,8 @@ class BusScheduler(Actor):
                     s.leg,
                     s.joint,
                     sid,
-                    None if pos is None else (pos - ct.CENTER_TICKS) * _RAD_PER_TICK,
-                    None if vel is None else vel * _RAD_S_PER_UNIT,
+                    None if pos is None else (pos - center) * rad_per_tick,
+                    None if vel is None else vel * rad_s_per_unit,
                     None if cur is None else cur * s.current_unit,
                     bool(errors.get(sid, 0) & ALERT),
                 )
@@ -952,9 +959,13 @@ class BusScheduler(Actor):
         """Hardware errors, warnings, booting and degraded servos; True if the bus was used."""
         busy = False
         # Only servos with something to say: an Alert, error bits read, a standing warning.
-        suspects = {sid for sid, err in errors.items() if err & ALERT}
+        servos = self.servos
+        suspects = {
+            sid
+            for sid, err in errors.items()
+            if err & ALERT or (sid in values and servos[sid].warning)
+        }
         suspects.update(sid for sid, regs in values.items() if regs.get("hardware_error_status"))
-        suspects.update(sid for sid in errors if sid in values and self.servos[sid].warning)
         for sid in sorted(suspects):
             s = self.servos[sid]
             if not s.live:
@@ -1034,7 +1045,8 @@ class BusScheduler(Actor):
     async def _poll(self, owner: PortOwner) -> bool:
         """Ping the booting or degraded servo whose turn has come (one per cycle at most)."""
         now = self.now()
-        waiting = [s for s in self.servos.values() if not s.live and now >= s.next_probe]
+        # not s.live, inlined: every cycle, 42 servos
+        waiting = [s for s in self.servos.values() if s.state != "ok" and now >= s.next_probe]
         if not waiting:
             return False
         s = min(waiting, key=lambda x: (x.next_probe, x.id))

@@ -48,8 +48,10 @@ before the bus turns torque off, when servo states still arrive.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from itertools import chain
 from typing import Final
 
 import anyio
@@ -95,6 +97,10 @@ WHEEL_LEAD_S: Final = 0.1
 """Hybrid gait: a leg's wheel stops this long before the leg lifts."""
 BUS_SILENT_S: Final = 0.2
 """No servo states for this long: the bus cannot carry out a sit-down any more."""
+_WHEELS_KEY: Final = struct.Struct("<21d").pack
+"""The key of :meth:`Coordinator._wheels`: a twist and six contact points, as bytes."""
+_POSE_RATES: Final = (0.1, 0.1, 0.1, math.radians(20), math.radians(20), math.radians(20))
+"""Body pose change per transition (m, rad): x, y, z, roll, pitch, yaw."""
 
 Wait = Callable[[], bool]
 Script = Iterator[Wait]
@@ -143,33 +149,36 @@ def support_margin(points: list[tuple[float, float]], cog: tuple[float, float]) 
     if len(points) < 3:
         return -math.inf
     pts = sorted(set(points))
-
-    def cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
     lower: list[tuple[float, float]] = []
     for q in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0:
+        while len(lower) >= 2 and _cross(lower[-2], lower[-1], q) <= 0:
             lower.pop()
         lower.append(q)
     upper: list[tuple[float, float]] = []
     for q in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0:
+        while len(upper) >= 2 and _cross(upper[-2], upper[-1], q) <= 0:
             upper.pop()
         upper.append(q)
     hull = lower[:-1] + upper[:-1]  # counter-clockwise
     cx, cy = cog
     best = math.inf
     inside = len(hull) >= 3
-    for k, (ax, ay) in enumerate(hull):
-        bx, by = hull[(k + 1) % len(hull)]
+    # min(max(u, 0), 1) and min(best, d) as comparisons: the same results, no calls.
+    for (ax, ay), (bx, by) in zip(hull, hull[1:] + hull[:1], strict=True):
         ex, ey = bx - ax, by - ay
         length2 = ex * ex + ey * ey
-        u = 0.0 if length2 == 0 else min(max(((cx - ax) * ex + (cy - ay) * ey) / length2, 0.0), 1.0)
-        best = min(best, math.hypot(cx - ax - u * ex, cy - ay - u * ey))
+        u = 0.0 if length2 == 0 else ((cx - ax) * ex + (cy - ay) * ey) / length2
+        u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
+        d = math.hypot(cx - ax - u * ex, cy - ay - u * ey)
+        if d < best:
+            best = d
         if ex * (cy - ay) - ey * (cx - ax) < 0.0:
             inside = False
     return best if inside else -best
+
+
+def _cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
 def _velocity_limit(model: str) -> float:
@@ -254,6 +263,16 @@ class Coordinator(Actor):
         joints = self.cfg.joints
         self.wheel_rate_max = _velocity_limit(joints.by_name("wheel").model)
         self.direction_rate_max = _velocity_limit(joints.by_name("direction").model)
+        self._wheels_key = b""
+        self._wheels_said: tuple[tuple[float, ...], tuple[float, ...]] = ((), ())
+        # Looked up once, not every cycle: a port attribute is a descriptor and a mapping
+        # lookup. An optional input or output the wiring left unconnected is None here.
+        self.commands_in = self.commands if self.commands.connected else None
+        self.legs_in = self.legs if self.legs.connected else None
+        self.tilt_in = self.tilt if self.tilt.connected else None
+        self.steps_out = self.steps
+        self.motion_out = self.motion
+        self.state_out = self.state if self.state.connected else None
 
     def _stance(self, name: str) -> Stance:
         return self.cfg.stance(name)
@@ -425,35 +444,42 @@ class Coordinator(Actor):
 
     def _limit_walk(self, twist: tuple[float, float, float]) -> tuple[float, float, float]:
         _, v_max = self._gait_limits(self.gait)
-        why = (
-            f"the {self.gait.name} gait's fastest foot: max_step_length_mm in the "
-            "shortest cycle (min_swing_s)"
+        return self._scaled(
+            twist,
+            v_max,
+            lambda: (
+                f"the {self.gait.name} gait's fastest foot: max_step_length_mm in the "
+                "shortest cycle (min_swing_s)"
+            ),
         )
-        return self._scaled(twist, v_max, why)
 
     def _limit_ride(self, twist: tuple[float, float, float]) -> tuple[float, float, float]:
         # The fastest wheel: the configured top speed, or what the wheel servo's Velocity
         # Limit (44) turns the wheel at, whichever is lower; beyond it the bus would clamp.
         wheel_max = self.wheel_rate_max * self.geometry.wheel_radius
         v_max = min(self.loco.ride_max_speed_m_s, wheel_max)
-        why = (
-            "locomotion.ride_max_speed_m_s (6.5.1)"
-            if v_max == self.loco.ride_max_speed_m_s
-            else "the wheel servo's Velocity Limit"
+        return self._scaled(
+            twist,
+            v_max,
+            lambda: (
+                "locomotion.ride_max_speed_m_s (6.5.1)"
+                if v_max == self.loco.ride_max_speed_m_s
+                else "the wheel servo's Velocity Limit"
+            ),
         )
-        return self._scaled(twist, v_max, why)
 
     def _scaled(
-        self, twist: tuple[float, float, float], v_max: float, why: str
+        self, twist: tuple[float, float, float], v_max: float, why: Callable[[], str]
     ) -> tuple[float, float, float]:
         """``twist`` scaled down so that no foot (or wheel) moves faster than ``v_max`` over
-        the ground; said once per command (:class:`CommandClamped`)."""
+        the ground; said once per command (:class:`CommandClamped`), with the reason ``why``
+        gives (made only then)."""
         fastest = max(self._foot_speeds(twist), default=0.0)
         if fastest <= v_max:
             return twist
         if not self._clamp_said:
             self._clamp_said = True
-            self._clamped("speed", fastest, v_max, why)
+            self._clamped("speed", fastest, v_max, why())
         k = v_max / fastest
         return twist[0] * k, twist[1] * k, twist[2] * k
 
@@ -471,29 +497,30 @@ class Coordinator(Actor):
     # ----------------------------------------------------------------- inputs
 
     def _take_states(self, states: ServoStates) -> None:
-        joints = states.joints
-        for j in joints:
-            if j.joint == 6:
-                self.wheel_measured[j.leg] = j.velocity_rad_s
-            elif j.joint == 5:
-                self.direction_measured[j.leg] = j.position_rad
-            elif j.joint == 0:
-                self.coxa_measured[j.leg] = j.position_rad
+        wheel, direction, coxa = self.wheel_measured, self.direction_measured, self.coxa_measured
+        for j in states.joints:
+            joint = j.joint
+            if joint == 6:
+                wheel[j.leg] = j.velocity_rad_s
+            elif joint == 5:
+                direction[j.leg] = j.position_rad
+            elif joint == 0:
+                coxa[j.leg] = j.position_rad
 
     def _take_tilt(self, dt: float) -> None:
         """The measured pitch, low-passed: the trochanters follow a slope, not the shakes of
         each step (an accelerometer reads the body's accelerations as tilt too)."""
-        if not self.tilt.connected:
+        if self.tilt_in is None:
             return
-        tilt = self.tilt.latest()
+        tilt = self.tilt_in.latest()
         if tilt is not None:
             self.tilt_measured = tilt.pitch_rad
         k = min(1.0, dt / self.loco.tilt_filter_s)
         self.tilt_pitch += (self.tilt_measured - self.tilt_pitch) * k
 
     def _take_legs(self) -> None:
-        if self.legs.connected:
-            for s in self.legs.drain():
+        if self.legs_in is not None:
+            for s in self.legs_in.drain():
                 self.feet[s.leg] = s.foot
 
     # ----------------------------------------------------------------- steps
@@ -501,7 +528,7 @@ class Coordinator(Actor):
     async def _send(
         self, leg: int, kind: str, duration: float, target: Vec3, height: float = 0.0
     ) -> None:
-        await self.steps.send(
+        await self.steps_out.send(
             StepCommand(
                 t=self.t,
                 source=self.name,
@@ -517,8 +544,9 @@ class Coordinator(Actor):
         )
 
     def _margin(self, down: list[int]) -> float:
-        points = [self.feet[i] or self.neutral_points[i] for i in down]
-        return support_margin([(p[0], p[1]) for p in points], (self.pose_now[0], self.pose_now[1]))
+        feet, neutral = self.feet, self.neutral_points
+        points = [(p[0], p[1]) for p in (feet[i] or neutral[i] for i in down)]
+        return support_margin(points, (self.pose_now[0], self.pose_now[1]))
 
     def _set_activity(self, activity: str) -> None:
         if activity != self.activity:
@@ -844,17 +872,29 @@ class Coordinator(Actor):
             self.steer = False
             self.speeds = (0.0,) * N_LEGS
             return
-        vx, vy, w = self.wheel_twist
-        cmd = wheel_twist(self._contacts(), vx, vy, w, wheel_radius=self.geometry.wheel_radius)
+        headings, wheel_speeds = self._wheels(self._contacts(), *self.wheel_twist)
         speeds = []
         for i in range(N_LEGS):
             psi = (self.phase - self.gait.offsets[i]) % 1.0
             soon = (1.0 - psi) * self.cycle_s < WHEEL_LEAD_S
-            speeds.append(0.0 if swinging[i] or soon else float(cmd.speed[i]))
+            speeds.append(0.0 if swinging[i] or soon else wheel_speeds[i])
         self.steer = True
         self.speeds = tuple(speeds)
         if any(abs(v) > STILL for v in self.wheel_twist):
-            self.headings = tuple(float(h) for h in cmd.heading)
+            self.headings = headings
+
+    def _wheels(
+        self, contacts: list[Vec3], vx: float, vy: float, w: float
+    ) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(headings, speeds) of :func:`wheel_twist` for ``contacts``, remembered for the next
+        call: riding asks the same of feet that stand still every cycle. The key is the
+        floats' bytes, so that 0.0 and −0.0 (which atan2 tells apart) differ."""
+        key = _WHEELS_KEY(vx, vy, w, *chain.from_iterable(contacts))
+        if key != self._wheels_key:
+            cmd = wheel_twist(contacts, vx, vy, w, wheel_radius=self.geometry.wheel_radius)
+            self._wheels_said = (tuple(cmd.heading.tolist()), tuple(cmd.speed.tolist()))
+            self._wheels_key = key
+        return self._wheels_said
 
     def _contacts(self) -> list[Vec3]:
         return [
@@ -865,21 +905,17 @@ class Coordinator(Actor):
         target = (0.0, 0.0, 0.0) if self.winding_down else self._limit_ride(self._wanted_twist())
         contacts = self._contacts()
         if any(abs(v) > STILL for v in target):
-            headings = wheel_twist(
-                contacts, *target, wheel_radius=self.geometry.wheel_radius
-            ).heading
+            headings, _ = self._wheels(contacts, *target)
             tol = math.radians(self.loco.align_tolerance_deg)
-            if max(abs(float(a) - b) for a, b in zip(headings, self.headings, strict=True)) > tol:
+            if max(abs(a - b) for a, b in zip(headings, self.headings, strict=True)) > tol:
                 # New headings: through zero speed, then align, then on (5.4, 6.5.2).
                 if all(abs(v) <= STILL for v in self.wheel_twist):
-                    self.script = self._align(tuple(float(h) for h in headings))
+                    self.script = self._align(headings)
                     return
                 target = (0.0, 0.0, 0.0)
         self.wheel_twist = self._ramp_twist(self.wheel_twist, target, dt)
-        vx, vy, w = self.wheel_twist
         if any(abs(v) > STILL for v in self.wheel_twist):
-            cmd = wheel_twist(contacts, vx, vy, w, wheel_radius=self.geometry.wheel_radius)
-            self.speeds = tuple(float(s) for s in cmd.speed)
+            _, self.speeds = self._wheels(contacts, *self.wheel_twist)
         else:
             self.speeds = (0.0,) * N_LEGS
 
@@ -888,8 +924,6 @@ class Coordinator(Actor):
     def _next_script(self) -> Script | None:
         """The wanted state differs from the present one: the script that bridges them."""
         w = self.want
-        still = all(abs(v) <= STILL for v in (*self.leg_twist, *self.wheel_twist))
-        swinging = any(self.t < u for u in self.swing_until)
         needs_rest = (
             w.upside_down != self.upside_down
             or w.mode != self.mode
@@ -902,6 +936,8 @@ class Coordinator(Actor):
             return None
         # Wind down: no lift-offs, the body stops, the swings land, the wheels stop.
         self.winding_down = True
+        still = all(abs(v) <= STILL for v in (*self.leg_twist, *self.wheel_twist))
+        swinging = any(self.t < u for u in self.swing_until)
         if not still or swinging or not self._wheels_stopped():
             return None
         self.winding_down = False
@@ -948,8 +984,8 @@ class Coordinator(Actor):
         self._take_states(states)
         self._take_legs()
         self._take_tilt(dt)
-        if self.commands.connected:
-            for cmd in self.commands.drain():
+        if self.commands_in is not None:
+            for cmd in self.commands_in.drain():
                 self._clamp_said = False
                 self._command(cmd)
         # Scripts first: while one runs, nothing else moves the feet.
@@ -1003,7 +1039,7 @@ class Coordinator(Actor):
             trochanter = min(
                 max(self.pose_now[4] + self.tilt_pitch, -MAX_TROCHANTER), MAX_TROCHANTER
             )
-        await self.motion.send(
+        await self.motion_out.send(
             BodyMotion(
                 t=self.t,
                 source=self.name,
@@ -1017,7 +1053,7 @@ class Coordinator(Actor):
                 wheel_speed_m_s=self.speeds,
             )
         )
-        if self.state.connected:
+        if self.state_out is not None:
             # As the gait counts them: a swing that ends within this cycle is down.
             landing = self.t + self.dt
             swing = tuple(i for i in range(N_LEGS) if landing < self.swing_until[i])
@@ -1028,7 +1064,7 @@ class Coordinator(Actor):
                 if self.mode == "walk"
                 else tuple(a + b for a, b in zip(self.leg_twist, self.wheel_twist, strict=True))
             )
-            await self.state.send(
+            await self.state_out.send(
                 LocomotionState(
                     t=self.t,
                     source=self.name,
@@ -1047,11 +1083,12 @@ class Coordinator(Actor):
     def _pose_step(self, target: tuple[float, ...]) -> tuple[float, ...]:
         """Move the body pose toward ``target`` at a rate that covers the full range in
         ``transition_s``: 0.1 m and 20° per transition."""
-        dt = self.dt
-        rates = (0.1, 0.1, 0.1, math.radians(20), math.radians(20), math.radians(20))
+        dt, span = self.dt, self.loco.transition_s
         return tuple(
-            _ramp(a, b, r * dt / self.loco.transition_s)
-            for a, b, r in zip(self.pose_now, target, rates, strict=True)
+            [
+                _ramp(a, b, r * dt / span)
+                for a, b, r in zip(self.pose_now, target, _POSE_RATES, strict=True)
+            ]
         )
 
     async def run(self) -> None:

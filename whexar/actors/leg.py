@@ -273,6 +273,17 @@ class LegActor(Actor):
         self.flip_to = False
         self.airborne = False
         """The foot is in the air this cycle (a swing, or a move with a lift): wheel stopped."""
+        # Looked up once, not every cycle: a port attribute is a descriptor and a mapping
+        # lookup. An optional input or output the wiring left unconnected is None here.
+        self.steps_in = self.steps if self.steps.connected else None
+        self.motion_in = self.motion if self.motion.connected else None
+        self.loads_in = self.loads if self.loads.connected else None
+        self.reflex_in = self.reflex if self.reflex.connected else None
+        self.goals_out = self.goals
+        self.state_out = self.state if self.state.connected else None
+        self.contact_current_a = self.loco.contact_current_a
+        self.femur = self.geometry.femur
+        self.tibia = self.geometry.tibia
 
     # ----------------------------------------------------------------- frames
 
@@ -312,7 +323,8 @@ class LegActor(Actor):
     # ----------------------------------------------------------------- inputs
 
     def _take_motion(self) -> None:
-        motion = self.motion.latest() if self.motion.connected else None
+        inbox = self.motion_in
+        motion = inbox.latest() if inbox is not None else None
         if motion is None:
             return
         self.twist = motion.twist
@@ -351,9 +363,9 @@ class LegActor(Actor):
             self.trochanter = motion.trochanter_rad
 
     def _take_steps(self, t: float) -> None:
-        if not self.steps.connected:
+        if self.steps_in is None:
             return
-        for cmd in self.steps.drain():
+        for cmd in self.steps_in.drain():
             if cmd.leg != self.leg:
                 continue
             self._begin(cmd, t)
@@ -390,25 +402,26 @@ class LegActor(Actor):
     def _take_state(self, states: ServoStates) -> None:
         # Which joints a cycle carries depends on the read plan's rates: look for this
         # leg's in every cycle (42 entries) rather than keep an index that rarely holds.
-        leg = self.leg
+        leg, measured, currents = self.leg, self.measured, self.currents
         for j in states.joints:
             if j.leg == leg:
-                if j.position_rad is not None:
-                    self.measured[j.joint] = j.position_rad
-                self.currents[j.joint] = j.current_a
+                position = j.position_rad
+                if position is not None:
+                    measured[j.joint] = position
+                currents[j.joint] = j.current_a
 
     def _take_loads(self, t: float) -> None:
-        if not self.loads.connected:
+        if self.loads_in is None:
             return
-        loads = self.loads.latest()
+        loads = self.loads_in.latest()
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
 
     def _take_reflex(self) -> None:
-        if not self.reflex.connected:
+        if self.reflex_in is None:
             return
-        for msg in self.reflex.drain():
+        for msg in self.reflex_in.drain():
             if not msg.reflex:
                 continue
             for g in msg.goals:
@@ -428,19 +441,19 @@ class LegActor(Actor):
             return (self.fsr_contact and t - self.fsr_t <= FSR_FRESH_S), "fsr"
         if source == "current":
             amps = self.currents[2]
-            return (amps is not None and abs(amps) > self.loco.contact_current_a), "current"
+            return (amps is not None and abs(amps) > self.contact_current_a), "current"
         return False, "none"
 
     def _load(self) -> tuple[float | None, float | None]:
         """eq. 5.19, F_i = I_i / (L_i · sin α_{i+1}), for the femur and tibia segments."""
-        out: list[float | None] = []
-        for joint, length in ((2, self.geometry.femur), (3, self.geometry.tibia)):
-            amps, nxt = self.currents[joint], self.measured[joint + 1]
-            if amps is None or nxt is None or abs(math.sin(nxt)) < MIN_SIN:
-                out.append(None)
-            else:
-                out.append(amps / (length * math.sin(nxt)))
-        return out[0], out[1]
+        return self._segment_load(2, self.femur), self._segment_load(3, self.tibia)
+
+    def _segment_load(self, joint: int, length: float) -> float | None:
+        amps, nxt = self.currents[joint], self.measured[joint + 1]
+        if amps is None or nxt is None:
+            return None
+        sin = math.sin(nxt)
+        return None if abs(sin) < MIN_SIN else amps / (length * sin)
 
     # ----------------------------------------------------------------- the foot
 
@@ -567,21 +580,17 @@ class LegActor(Actor):
             direction = 0.0
         speed = 0.0 if airborne or not self.steer or self.upside_down else self.speed
         last = self.sent
+        name, leg = self.name, self.leg
         goals = []
-        for j in range(_POSITIONING + 1):
-            angle = angles[j] if j < _POSITIONING else direction
+        for j, angle in enumerate((*angles, direction)):  # the positioning joints, direction
             if abs(angle - last[j]) >= HALF_TICK_RAD:
                 last[j] = angle
-                goals.append(
-                    JointGoal(t=t, source=self.name, leg=self.leg, joint=j, position_rad=angle)
-                )
+                goals.append(JointGoal(t=t, source=name, leg=leg, joint=j, position_rad=angle))
         rate = speed / self.wheel_radius
         if rate != last[_WHEEL]:
             last[_WHEEL] = rate
-            goals.append(
-                JointGoal(t=t, source=self.name, leg=self.leg, joint=_WHEEL, velocity_rad_s=rate)
-            )
-        return JointGoals(t=t, source=self.name, goals=tuple(goals)) if goals else None
+            goals.append(JointGoal(t=t, source=name, leg=leg, joint=_WHEEL, velocity_rad_s=rate))
+        return JointGoals(t=t, source=name, goals=tuple(goals)) if goals else None
 
     def _apply_reflex(self, t: float, angles: list[float]) -> tuple[list[float], list[JointGoal]]:
         """Reflex-held joints, and the blend back from them (module docstring)."""
@@ -648,7 +657,7 @@ class LegActor(Actor):
                 phase = "reflex"
                 for g in forwarded:  # the bus now holds the reflex's goal for these joints
                     self.sent[g.joint] = math.inf
-                await self.goals.send(
+                await self.goals_out.send(
                     JointGoals(t=t, source=self.name, goals=tuple(forwarded), reflex=True)
                 )
         airborne = phase in ("swing", "flip") or (
@@ -656,21 +665,19 @@ class LegActor(Actor):
         )
         goals = self._goals(t, angles, airborne)
         if goals is not None:
-            await self.goals.send(goals)
-        if self.state.connected:
+            await self.goals_out.send(goals)
+        if self.state_out is not None:
             measured = None
-            # A plan that does not read the trochanter (the default) leaves its goal.
-            seen = [
-                troch if j == 1 and m is None else m
-                for j, m in enumerate(self.measured[:_POSITIONING])
-            ]
-            if all(m is not None for m in seen):
-                q = planar_fk([m for m in seen if m is not None], self.geometry)
+            coxa, trochanter, femur, tibia, tarsus = self.measured[:_POSITIONING]
+            if trochanter is None:
+                trochanter = troch  # a plan that does not read it (the default) leaves its goal
+            if coxa is not None and femur is not None and tibia is not None and tarsus is not None:
+                q = planar_fk([coxa, trochanter, femur, tibia, tarsus], self.geometry)
                 if self.upside_down:
                     q = (q[0], -q[1], q[2])
                 measured = self._from_leg(q)
             foot = self.foot
-            await self.state.send(
+            await self.state_out.send(
                 LegState(
                     t=t,
                     source=self.name,

@@ -26,6 +26,7 @@ solution; γ uses atan2 so targets inside the femur joint still solve.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Literal
@@ -225,7 +226,7 @@ def ik_point(
     femur = beta + gamma - _HALF_PI
     tibia = alpha - math.pi
     raw = (coxa, theta1, femur, tibia, -_HALF_PI - femur - tibia)
-    lo, hi = g.lower_limits, g.upper_limits
+    lo, hi = _float_limits(g)
     out = []
     for k, a in enumerate(raw):
         a = (a + math.pi) % _TWO_PI - math.pi
@@ -233,6 +234,13 @@ def ik_point(
             return _ik_tuple(ik((x, y, z), g, pitch=pitch, target=target))
         out.append(a)
     return out[0], out[1], out[2], out[3], out[4]
+
+
+@functools.lru_cache(maxsize=16)
+def _float_limits(g: LegGeometry) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The joint limits as Python floats, per geometry: :func:`ik_point` compares every
+    angle with them, and reading a numpy array's element costs more than the comparison."""
+    return tuple(g.lower_limits.tolist()), tuple(g.upper_limits.tolist())
 
 
 def _ik_tuple(solution: IKSolution) -> tuple[float, float, float, float, float]:

@@ -23,6 +23,7 @@ Conventions (body frame, REP-103: x forward, y left, z up; yaw counter-clockwise
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Final
 
@@ -70,7 +71,7 @@ def _contacts(contacts: ArrayLike) -> FloatArray:
             f"contacts has shape {points.shape}: expected (6, 2) or (6, 3) wheel contact points "
             f"in the body frame, one row per leg {', '.join(LEG_NAMES)}"
         )
-    if not np.all(np.isfinite(points)):
+    if not np.isfinite(points).all():
         bad = np.argwhere(~np.isfinite(points))[0]
         raise UsageError(
             f"contacts[{bad[0]}, {bad[1]}] = {points[tuple(bad)]!r}: coordinates must be finite"
@@ -87,6 +88,14 @@ def _coxa(coxa: ArrayLike | None) -> FloatArray:
     if not np.all(np.isfinite(angles)):
         raise UsageError(f"coxa = {angles.tolist()!r}: angles must be finite")
     return angles
+
+
+def _real(name: str, value: object) -> float:
+    """:func:`~whexar.runtime.checks.real`, with a fast path for the usual finite float
+    (the coordinator asks every cycle; the general check costs a microsecond)."""
+    if type(value) is float and math.isfinite(value):
+        return value
+    return real(name, value)
 
 
 def _readonly(array: FloatArray) -> FloatArray:
@@ -115,28 +124,36 @@ def wheel_twist(
     A wheel at the centre of rotation (speed below 1e-12 m/s) has no heading and is kept at 0.
     """
     points = _contacts(contacts)
-    coxa_angles = _coxa(coxa)
+    coxa_angles = None if coxa is None else _coxa(coxa)
     radius = positive("wheel_radius", wheel_radius, "m")
-    vx_, vy_, omega = real("vx", vx), real("vy", vy), real("yaw_rate", yaw_rate)
+    vx_, vy_, omega = _real("vx", vx), _real("vy", vy), _real("yaw_rate", yaw_rate)
 
     # ω ẑ × (x, y) = (−ω y, ω x)
     vel_x = vx_ - omega * points[:, 1]
     vel_y = vy_ + omega * points[:, 0]
     speed = np.hypot(vel_x, vel_y)
+    heading = np.arctan2(vel_y, vel_x)
+    # The selections below are skipped where they would select nothing (the usual case):
+    # the same values, a few numpy calls fewer.
     still = speed < _STILL_SPEED
-    heading = np.where(still, 0.0, np.arctan2(vel_y, vel_x))
-    speed = np.where(still, 0.0, speed)
+    if still.any():
+        heading = np.where(still, 0.0, heading)
+        speed = np.where(still, 0.0, speed)
 
     # Minimal steering: never turn more than 90° from straight ahead; reverse the drive instead.
     reverse = (heading > np.pi / 2) | (heading <= -np.pi / 2)
-    heading = np.where(reverse, heading - np.sign(heading) * np.pi, heading)
-    speed = np.where(reverse, -speed, speed)
+    if reverse.any():
+        heading = np.where(reverse, heading - np.sign(heading) * np.pi, heading)
+        speed = np.where(reverse, -speed, speed)
 
     centre = None if omega == 0.0 else np.array([-vy_ / omega, vx_ / omega])
-    if centre is not None and not np.all(np.isfinite(centre)):
+    if centre is not None and not np.isfinite(centre).all():
         centre = None  # ω so small that the centre lies beyond float range: a translation
+    direction = SIDE_SIGN * heading
+    if coxa_angles is not None:  # without them, subtracting zeros would change no bit
+        direction = direction - coxa_angles
     return WheelCommand(
-        direction=_readonly(SIDE_SIGN * heading - coxa_angles),
+        direction=_readonly(direction),
         heading=_readonly(heading),
         speed=_readonly(speed),
         wheel_rate=_readonly(speed / radius),

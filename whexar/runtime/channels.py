@@ -65,7 +65,7 @@ anyio's vocabulary (``send``/``receive``/``*_nowait``, :class:`anyio.WouldBlock`
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Generic, TypeVar
@@ -187,6 +187,10 @@ class Channel(Generic[M]):
         self.observer = observer
         self.published = 0
         self._subs: list[_Subscription[M]] = []
+        # The policy as flags: an enum member lookup costs more than the rest of a check.
+        self.may_wait = policy is Policy.BACKPRESSURE
+        """Whether a publisher may have to wait (``backpressure``): :meth:`send` then awaits."""
+        self._latest = policy is Policy.LATEST
 
     def subscribe(self, subscriber: str) -> asyncio.Queue[M]:
         """A new buffer for ``subscriber``; returns it."""
@@ -199,7 +203,7 @@ class Channel(Generic[M]):
 
         ``turn`` is the publishing actor's (see fairness in the module docstring).
         """
-        if self.policy is not Policy.BACKPRESSURE:
+        if not self.may_wait:
             self.send_nowait(msg)  # latest and queue never wait
             return
         self._count(msg)
@@ -215,19 +219,20 @@ class Channel(Generic[M]):
 
     def send_nowait(self, msg: M) -> None:
         """Publish without waiting; a full ``backpressure`` buffer raises :class:`WouldBlock`."""
-        backpressure = self.policy is Policy.BACKPRESSURE
-        if backpressure and any(s.queue.full() for s in self._subs):
+        if self.may_wait and any(s.queue.full() for s in self._subs):
             raise WouldBlock  # checked first, so a refused message reaches nobody
-        self._count(msg)
+        if self.observer is not None:  # _count, inlined: every message passes here
+            self.observer(self.name, msg)
+        self.published += 1
         for sub in self._subs:
             queue = sub.queue
-            if queue.full():  # never for backpressure: checked above
+            try:
+                queue.put_nowait(msg)  # it checks for room itself: no full() before it
+            except asyncio.QueueFull:  # never for backpressure: checked above
                 sub.dropped += 1
-                if self.policy is Policy.LATEST:
+                if self._latest:
                     queue.get_nowait()
                     queue.put_nowait(msg)
-            else:
-                queue.put_nowait(msg)
 
     def _count(self, msg: M) -> None:
         if self.observer is not None:
@@ -288,25 +293,28 @@ class Inbox(Generic[M]):
 
     def drain(self) -> list[M]:
         """Every buffered message, oldest first, without waiting."""
-        return list(self._iter_buffered())
+        # Plain loops, not a generator: actors call this for several inputs every cycle.
+        out: list[M] = []
+        queue = self._queue
+        if queue is not None:
+            while not queue.empty():
+                out.append(queue.get_nowait())
+        return out
 
     def latest(self) -> M | None:
         """The newest buffered message (dropping older ones), or ``None``."""
         last: M | None = None
-        for last in self._iter_buffered():  # noqa: B007 - only the last one is wanted
-            pass
-        return last
-
-    def _iter_buffered(self) -> Iterator[M]:
         queue = self._queue
-        while queue is not None and not queue.empty():
-            yield queue.get_nowait()
+        if queue is not None:
+            while not queue.empty():
+                last = queue.get_nowait()
+        return last
 
     def __aiter__(self) -> Inbox[M]:
         return self
 
-    async def __anext__(self) -> M:
-        return await self.receive()
+    __anext__ = receive
+    """The next message (``async for``): :meth:`receive` itself, one coroutine less."""
 
 
 class Outbox(Generic[M]):
@@ -330,7 +338,10 @@ class Outbox(Generic[M]):
         if turn.left <= turn.check_at and turn.running_low():
             await asyncio.sleep(0)  # fairness: others run; a stop is delivered here
         for channel in self.channels:
-            await channel.send(msg, turn)
+            if channel.may_wait:
+                await channel.send(msg, turn)
+            else:
+                channel.send_nowait(msg)  # what send does, without making a coroutine
 
     def send_nowait(self, msg: M) -> None:
         """Publish without waiting (see :meth:`Channel.send_nowait`)."""
