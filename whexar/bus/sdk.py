@@ -57,7 +57,7 @@ from typing import Any, Final, Protocol, TypeVar
 import anyio
 import anyio.lowlevel
 import dynamixel_sdk as dxl
-from dynamixel_sdk.protocol2_packet_handler import Protocol2PacketHandler
+from dynamixel_sdk.protocol2_packet_handler import TXPACKET_MAX_LEN, Protocol2PacketHandler
 
 from whexar.bus.control_table import Register
 from whexar.bus.protocol import ALERT, crc16
@@ -144,6 +144,7 @@ _LENGTH_L: Final = 5
 _INSTRUCTION: Final = 7
 """Protocol 2.0 packet offsets: LEN_L at 5, the instruction at 7 (e-manual)."""
 _STUFFED: Final = b"\xff\xff\xfd\xfd"
+_TO_STUFF: Final = b"\xff\xff\xfd"
 
 
 class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
@@ -152,20 +153,48 @@ class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
     The SDK's ``updateCRC`` rebuilds its 256-entry table as a list literal on
     every call — one call per packet, 43 per Sync Read of 42 servos. Same
     polynomial and results (:func:`whexar.bus.protocol.crc16`, tested equal);
-    ``removeStuffing`` returns a packet without stuffing as it is (tested equal).
-    Everything else is the SDK's own code.
+    ``addStuffing`` and ``removeStuffing`` return a packet with nothing to do
+    as it is (tested equal). Everything else is the SDK's own code.
     """
 
     def updateCRC(self, crc_accum: int, data_blk_ptr: Any, data_blk_size: int) -> int:  # noqa: N802
         return crc16(bytes(data_blk_ptr[:data_blk_size]), crc_accum)
 
+    def addStuffing(self, packet: list[int]) -> list[int]:  # noqa: N802
+        """The SDK's, but a packet with no ``FF FF FD`` to stuff (nearly all of them) is
+        returned at once: the SDK's byte loop would copy it through a 1 KiB list onto itself.
+
+        The SDK's own loop runs whenever it might do anything else: a packet shorter than
+        its LEN or longer than ``TXPACKET_MAX_LEN`` (it raises), a LEN under 2, bytes that
+        are not bytes.
+        """
+        length = packet[_LENGTH_L] | (packet[_LENGTH_L + 1] << 8)
+        end = _INSTRUCTION + length
+        if length >= 2 and end <= len(packet) and end <= TXPACKET_MAX_LEN:
+            try:
+                # The SDK looks for FF FF FD starting from LEN_L, up to the CRC.
+                if bytes(packet).find(_TO_STUFF, _LENGTH_L, end - 2) < 0:
+                    return packet
+            except (TypeError, ValueError):
+                pass
+        result: list[int] = super().addStuffing(packet)
+        return result
+
     def removeStuffing(self, packet: list[int]) -> list[int]:  # noqa: N802
         """The SDK's, but a packet with no stuffed ``FF FF FD FD`` (nearly all of them) is
-        returned at once: the SDK's byte loop would copy each byte onto itself."""
+        returned at once: the SDK's byte loop would copy each byte onto itself.
+
+        As in :meth:`addStuffing`, the SDK's loop runs whenever it might do anything else.
+        """
         length = packet[_LENGTH_L] | (packet[_LENGTH_L + 1] << 8)
-        body = bytes(packet[_INSTRUCTION - 2 : _INSTRUCTION + length - 2])
-        if _STUFFED not in body:
-            return packet
+        end = _INSTRUCTION + length
+        if length >= 2 and end <= len(packet):
+            try:
+                # The SDK looks for FF FF FD FD starting from LEN_L, up to CRC_L included.
+                if bytes(packet).find(_STUFFED, _LENGTH_L, end - 1) < 0:
+                    return packet
+            except (TypeError, ValueError):
+                pass
         result: list[int] = super().removeStuffing(packet)
         return result
 
@@ -194,14 +223,20 @@ class DxlBus:
         self.port = port
         self.ph = PacketHandler()
 
+    def _lost(self, exc: OSError) -> DeviceGoneError:
+        """The error to raise, from ``exc``, for a port that raised it."""
+        self.port.is_using = False  # the SDK leaves it set when the port raises
+        name = getattr(self.port, "port_name", "the servo port")
+        return DeviceGoneError(f"servo port {name}: {exc}")
+
     @contextlib.contextmanager
     def _gone(self) -> Iterator[None]:
+        # The cycle's hot paths (sync_read, _write) spell this out as try/except: a
+        # generator context manager costs about a microsecond per use.
         try:
             yield
         except OSError as exc:  # pyserial's SerialException is an OSError
-            self.port.is_using = False  # the SDK leaves it set when the port raises
-            name = getattr(self.port, "port_name", "the servo port")
-            raise DeviceGoneError(f"servo port {name}: {exc}") from exc
+            raise self._lost(exc) from exc
 
     def ping(self, servo: int, *, timeout_ms: float | None = None) -> Reply:
         """Ping ``servo``; ``value`` is its model number.
@@ -268,10 +303,12 @@ class DxlBus:
         return self._write(packet)
 
     def _write(self, packet: bytes) -> int:
-        with self._gone():
+        try:
             # No clearPort() as the SDK's txPacket does: nothing answers this packet, and the
             # next transaction that waits for an answer clears the input first.
             written = self.port.writePort(packet)
+        except OSError as exc:  # as _gone()
+            raise self._lost(exc) from exc
         return COMM_SUCCESS if written == len(packet) else int(dxl.COMM_TX_FAIL)
 
     def sync_read(
@@ -292,12 +329,14 @@ class DxlBus:
         """
         if not ids:
             return SyncReadResult(COMM_SUCCESS, sent=[self.send(p) for p in then])
-        with self._gone():
+        try:
             result = self.ph.syncReadTx(self.port, start, length, list(ids), len(ids), fast)
             if result != COMM_SUCCESS:
                 out = SyncReadResult(result, failed=ids[0])
             else:
                 out = self._fast_rx(ids, length) if fast else self._rx(ids, length, then)
+        except OSError as exc:  # as _gone()
+            raise self._lost(exc) from exc
         if len(out.sent) < len(then):
             out.sent = [self.send(p) for p in then]
         return out
@@ -319,17 +358,19 @@ class DxlBus:
     def _rx(self, ids: Sequence[int], length: int, then: Sequence[bytes] = ()) -> SyncReadResult:
         out = SyncReadResult(COMM_SUCCESS)
         pending = bool(then)
+        read, port = self.ph.readRx, self.port
+        got, errors = out.data, out.errors
         for servo in ids:
             if pending and self._tail_complete(ids[-1], length):
                 # Mid-read the SDK still marks the port in use; the bus itself is free.
                 out.sent = [self._write(p) for p in then]
                 pending = False
-            data, result, error = self.ph.readRx(self.port, servo, length)
+            data, result, error = read(port, servo, length)
             if result != COMM_SUCCESS:
                 out.result, out.failed = result, servo
                 return out
-            out.data[servo] = bytes(data)
-            out.errors[servo] = error
+            got[servo] = bytes(data)
+            errors[servo] = error
         return out
 
     def _fast_rx(self, ids: Sequence[int], length: int) -> SyncReadResult:

@@ -59,7 +59,10 @@ class EmulatedPort:
         self.emulator_s = 0.0
         """Host CPU seconds spent inside the chain (only counted when ``timer`` is given)."""
         self.last: Transaction | None = None
-        self._rx = bytearray()
+        # Received bytes are _rx[_rx_at:]: a read slices once and moves the mark, where a
+        # bytearray would copy twice and shift its contents (two reads per status packet).
+        self._rx = b""
+        self._rx_at = 0
         self._tx_start = 0.0
         self._deadline = 0.0
 
@@ -91,7 +94,8 @@ class EmulatedPort:
 
     def clearPort(self) -> None:  # noqa: N802
         """Drop received bytes not yet read (the SDK does this before every transmit)."""
-        self._rx.clear()
+        self._rx = b""
+        self._rx_at = 0
 
     def setPortName(self, port_name: str) -> None:  # noqa: N802
         """Rename the port (cosmetic)."""
@@ -114,17 +118,20 @@ class EmulatedPort:
 
     def getBytesAvailable(self) -> int:  # noqa: N802
         """Received bytes not yet read."""
-        return len(self._rx)
+        return len(self._rx) - self._rx_at
 
     def peek(self) -> bytes:
         """The received bytes not yet read."""
-        return bytes(self._rx)
+        return self._rx[self._rx_at :]
 
     def readPort(self, length: int) -> bytes:  # noqa: N802
         """Up to ``length`` received bytes; ``OSError(EIO)`` when unplugged."""
-        self._check_plugged()
-        data = bytes(self._rx[:length])
-        del self._rx[:length]
+        if self.chain.faults.unplugged:
+            self._check_plugged()
+        at = self._rx_at
+        # The SDK can ask for a negative count: then slicing the unread bytes decides, as ever.
+        data = self._rx[at : at + length] if length >= 0 else self._rx[at:][:length]
+        self._rx_at = at + len(data)
         return data
 
     def writePort(self, packet: bytes | Sequence[int]) -> int:  # noqa: N802
@@ -144,7 +151,9 @@ class EmulatedPort:
         if self.timer is not None:
             self.emulator_s += self.timer() - started
         self.last = tx
-        self._rx += tx.reply
+        if tx.reply:
+            self._rx = self._rx[self._rx_at :] + tx.reply
+            self._rx_at = 0
         self.elapsed_s += tx.cost_s
         return len(data)
 
@@ -162,7 +171,7 @@ class EmulatedPort:
 
     def isPacketTimeout(self) -> bool:  # noqa: N802
         """True once nothing is left to read; bus time then runs on to the deadline."""
-        if self._rx:
+        if self._rx_at < len(self._rx):
             return False
         self.elapsed_s = max(self.elapsed_s, self._deadline)
         return True
