@@ -16,6 +16,7 @@ from whexar.kinematics.wheels import heading_from_direction
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.sim.model import (
     STANCE_KEY,
+    TIMESTEP_S,
     WheelShape,
     build_mjcf,
     default_base_height,
@@ -80,7 +81,7 @@ def test_the_model_has_the_named_joints_actuators_sites_and_geoms(model: mujoco.
 
 
 def test_the_options_are_the_contract(model: mujoco.MjModel) -> None:
-    assert model.opt.timestep == 0.002
+    assert model.opt.timestep == TIMESTEP_S == 0.0025
     assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     assert model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
     assert model.opt.impratio == 10.0
@@ -286,7 +287,7 @@ def test_turning_wheels_drive_the_robot_forward_without_slip() -> None:
     qadr, dadr = _qadr(m), _dadr(m)
     target = stance_angles(CFG).ravel()
     wheel = np.array([name.endswith("_wheel") for name in NAMES])
-    for _ in range(500):
+    for _ in range(round(1.0 / m.opt.timestep)):  # 1 s
         q, w = after.qpos[qadr], after.qvel[dadr]
         tau = 60.0 * (target - q) - 1.0 * w
         tau[wheel] = 2.0 * (rate - w[wheel])

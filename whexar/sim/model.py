@@ -135,9 +135,15 @@ A stiffer contact sinks less, and on the flat the "slip" of a rolling wheel is m
 that sinking: the tyre rolls on a radius shorter by its penetration. The notes saw a
 stiffer ``solref`` cut slip from 0.3 % to 0.02 %; here, driving at 0.1 m/s on the flat
 (sphere / cylinder wheels): 1.06 / 0.72 % at 20 ms, 0.45 / 0.24 % at 10 ms, 0.13 /
-0.07 % at 5 ms, with the tyres 0.15 mm deep. 5 ms is 2.5 steps of 2 ms; MuJoCo raises a
+0.07 % at 5 ms, with the tyres 0.15 mm deep. 5 ms is 2 steps of 2.5 ms; MuJoCo raises a
 time constant below 2 timesteps to 2 timesteps itself (``refsafe``), so a longer
-timestep stays stable."""
+timestep stays stable, with softer wheels."""
+TIMESTEP_S: Final = 0.0025
+"""The physics timestep: 2.5 ms, chosen by measurement (docs/sim.md, "Time and timestep").
+
+It agrees with 1 ms within millimetres over the whole course, and it is the longest step
+that keeps the wheels' 5 ms contact time constant (:data:`WHEEL_SOLREF`) at MuJoCo's
+two-timestep floor instead of raising it."""
 STANCE_KEY: Final = "stance"
 """Name of the keyframe in which the robot stands in its configured stance."""
 
@@ -641,7 +647,7 @@ def build_mjcf(
     cfg: RobotConfig | None = None,
     *,
     terrain: Terrain | None = None,
-    timestep: float = 0.002,
+    timestep: float = TIMESTEP_S,
     base_height: float | None = None,
     stance: str | None = None,
     wheel_shape: WheelShape = "sphere",
@@ -754,7 +760,7 @@ def load_model(
     cfg: RobotConfig | None = None,
     *,
     terrain: Terrain | None = None,
-    timestep: float = 0.002,
+    timestep: float = TIMESTEP_S,
     base_height: float | None = None,
     stance: str | None = None,
     wheel_shape: WheelShape = "sphere",

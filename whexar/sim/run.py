@@ -43,7 +43,7 @@ from whexar.runtime.messages import ActorReady, ActorStarting, Event
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sim.faults import SensorFault
-from whexar.sim.model import load_model
+from whexar.sim.model import TIMESTEP_S, load_model
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
 from whexar.testing.harness import Harness, RunResult, run_actors
@@ -182,7 +182,7 @@ def simulate(
     faults: str | Path | None = None,
     start: tuple[float, float, float] = (0.0, 0.0, 0.0),
     on_sample: Callable[[Sample, SimWorld], None] | None = None,
-    timestep: float = 0.002,
+    timestep: float = TIMESTEP_S,
     sensor_faults: Sequence[SensorFault] = (),
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
