@@ -47,6 +47,7 @@ import hashlib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from operator import is_not
 from typing import Final
 
 import mujoco
@@ -113,7 +114,6 @@ class _Joint:
     amps_unit: float | None
     index: int = 0
     """Position in the world's joint arrays."""
-    drive: Drive | None = None
     gains_raw: bytes = b""
     """The gain registers' bytes the arrays were last computed from."""
 
@@ -218,6 +218,16 @@ class SimWorld:
         self._on = np.zeros(n, dtype=bool)
         self._velocity_mode = np.zeros(n, dtype=bool)
         self._goal, self._vmax, self._amax = np.zeros(n), np.zeros(n), np.full(n, np.inf)
+        self._drives: list[Drive | None] = [None] * n
+        """The drive each joint's arrays were last computed from."""
+        self._orders_now: tuple[list[bool], list[bool], list[float], list[float], list[float]] = (
+            [False] * n,
+            [False] * n,
+            [0.0] * n,
+            [0.0] * n,
+            [math.inf] * n,
+        )
+        """Torque on, velocity mode, goal, top speed, acceleration: :meth:`_orders`' lists."""
         self._kp, self._kvp, self._kvi = np.zeros(n), np.zeros(n), np.zeros(n)
         self._volts = np.zeros(n)
         self._volts_seen: list[float] = []
@@ -337,47 +347,44 @@ class SimWorld:
 
     def _orders(self) -> None:
         """Every servo's orders as arrays, read again only where a write made a new drive."""
+        servos = self._servos
         # The supply (a brownout fault changes it without a write).
-        volts = [j.servo.input_voltage_v for j in self.joints]
+        volts = [s.input_voltage_v for s in servos]
         changed = volts != self._volts_seen
         if changed:
             self._volts_seen = volts
             self._volts = np.array(volts)
-        for j in self.joints:
-            drive = j.servo.drive
-            if drive is j.drive:
-                continue
-            j.drive = drive
-            k, s = j.index, j.servo
-            velocity_mode = drive.mode == VELOCITY_MODE
-            amax = drive.max_acceleration / TICKS_PER_RAD
-            if (
-                bool(self._on[k]) != drive.torque
-                or bool(self._velocity_mode[k]) != velocity_mode
-                or self._amax[k] != amax
-            ):
-                changed = True  # the masks change, not only a goal
-            self._on[k] = drive.torque
-            self._velocity_mode[k] = velocity_mode
-            self._goal[k] = (
-                drive.goal_velocity / TICKS_PER_RAD
-                if drive.mode == VELOCITY_MODE
-                else (drive.goal_position - ct.CENTER_TICKS) / TICKS_PER_RAD
-            )
-            self._vmax[k] = drive.max_velocity / TICKS_PER_RAD
-            self._amax[k] = amax
-            # The gains, read from the table as the firmware does, only when they changed
-            # (a new drive is mostly a new goal).
-            table = s.table
-            raw = bytes(table[_GAINS_SPAN])
-            if raw != j.gains_raw:
-                j.gains_raw = raw
-                reg = s.model.register
-                self._kp[k] = position_duty_per_rad(reg("position_p_gain").decode(table))
-                self._kvp[k] = reg("velocity_p_gain").decode(table) / KVP_DIVISOR
-                self._kvi[k] = reg("velocity_i_gain").decode(table) / KVI_DIVISOR
-            if not drive.torque:
-                self._integral[k] = 0.0
+        drives = [s.drive for s in servos]
+        seen = self._drives
+        if any(map(is_not, drives, seen)):
+            # Per joint in Python lists (a numpy element costs more than a list item),
+            # then the arrays at once.
+            on, velocity, goal, vmax, amax = self._orders_now
+            for k, drive in enumerate(drives):
+                if drive is seen[k]:
+                    continue
+                velocity_mode = drive.mode == VELOCITY_MODE
+                ramp = drive.max_acceleration / TICKS_PER_RAD
+                if on[k] != drive.torque or velocity[k] != velocity_mode or amax[k] != ramp:
+                    changed = True  # the masks change, not only a goal
+                on[k] = drive.torque
+                velocity[k] = velocity_mode
+                goal[k] = (
+                    drive.goal_velocity / TICKS_PER_RAD
+                    if velocity_mode
+                    else (drive.goal_position - ct.CENTER_TICKS) / TICKS_PER_RAD
+                )
+                vmax[k] = drive.max_velocity / TICKS_PER_RAD
+                amax[k] = ramp
+                self._read_gains(self.joints[k])
+                if not drive.torque:
+                    self._integral[k] = 0.0
+            self._drives = drives
+            self._goal, self._vmax = np.array(goal), np.array(vmax)
+            if changed:
+                self._on = np.array(on, dtype=bool)
+                self._velocity_mode = np.array(velocity, dtype=bool)
+                self._amax = np.array(amax)
         if changed:
             # What the per-step law needs, derived again when torque, mode, profile
             # acceleration or supply changed (a new goal changes none of them).
@@ -391,6 +398,20 @@ class SimWorld:
             self._amax_finite = np.where(self._finite, self._amax, 1.0)
             self._drive_gain = self._kt * self._volts / self._resistance
             self._emf_gain = self._kt * self._kt / self._resistance
+
+    def _read_gains(self, j: _Joint) -> None:
+        """The joint's gains, read from the table as the firmware does, when they changed
+        (a new drive is mostly a new goal)."""
+        table = j.servo.table
+        raw = bytes(table[_GAINS_SPAN])
+        if raw == j.gains_raw:
+            return
+        j.gains_raw = raw
+        k = j.index
+        reg = j.servo.model.register
+        self._kp[k] = position_duty_per_rad(reg("position_p_gain").decode(table))
+        self._kvp[k] = reg("velocity_p_gain").decode(table) / KVP_DIVISOR
+        self._kvi[k] = reg("velocity_i_gain").decode(table) / KVI_DIVISOR
 
     def _control(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
         """The firmware and the motor of every servo for one step: the joints' torques.

@@ -208,6 +208,7 @@ class ServoChain:
         # On a duplicated ID the later servo wins, as a scan would find only one.
         self.servos = {s.id: s for s in self._all}
         self._ordered = sorted(self.servos.values(), key=lambda s: s.id)
+        self._ids_ordered = [s.id for s in self._ordered]
 
     def advance(self, t: float) -> None:
         """Bring every servo's dynamics up to bus time ``t`` (through :attr:`mover` if set)."""
@@ -322,8 +323,16 @@ class ServoChain:
     # ----------------------------------------------------------------- instructions
 
     def _hearing(self, t: float) -> dict[int, VirtualServo]:
-        """The servos that hear a broadcast packet at ``t`` by ID, in ID order (:meth:`_hears`)."""
-        return {s.id: s for s in self._ordered if self._hears(s, t)}
+        """The servos that hear a broadcast packet at ``t`` by ID, in ID order (:meth:`_hears`,
+        written out: every group read and write asks it of every servo)."""
+        silent = self.faults.silent_until
+        out: dict[int, VirtualServo] = {}
+        for sid, servo in zip(self._ids_ordered, self._ordered, strict=True):
+            if (silent and t < silent.get(sid, -math.inf)) or servo.booting(t):
+                continue
+            servo.heard(t)
+            out[sid] = servo
+        return out
 
     def _execute(self, p: Packet, t: float) -> tuple[list[_Reply], bool]:
         inst = p.instruction
