@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from operator import is_not
 from typing import Final
@@ -218,7 +218,7 @@ class SimWorld:
         self._on = np.zeros(n, dtype=bool)
         self._velocity_mode = np.zeros(n, dtype=bool)
         self._goal, self._vmax, self._amax = np.zeros(n), np.zeros(n), np.full(n, np.inf)
-        self._drives: list[Drive | None] = [None] * n
+        self._drives: Sequence[Drive | None] = [None] * n
         """The drive each joint's arrays were last computed from."""
         self._orders_now: tuple[list[bool], list[bool], list[float], list[float], list[float]] = (
             [False] * n,
@@ -388,11 +388,11 @@ class SimWorld:
         if changed:
             # What the per-step law needs, derived again when torque, mode, profile
             # acceleration or supply changed (a new goal changes none of them).
-            on, vel = self._on, self._velocity_mode
-            self._position = on & ~vel
+            torque, vel = self._on, self._velocity_mode
+            self._position = torque & ~vel
             self._position_f = self._position.astype(float)
-            self._velocity = on & vel
-            self._on_f = on.astype(float)
+            self._velocity = torque & vel
+            self._on_f = torque.astype(float)
             self._finite = np.isfinite(self._amax) & self._position
             self._ramped = bool(self._finite.any())
             self._amax_finite = np.where(self._finite, self._amax, 1.0)
