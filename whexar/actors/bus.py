@@ -117,6 +117,7 @@ from whexar.bus.sdk import (
     comm_name,
     latency_timer_ms,
     open_port,
+    tap_port,
 )
 from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError
@@ -518,6 +519,9 @@ class BusScheduler(Actor):
                 chain = DEVICES.get(SERVO_CHAIN, key, setting=f"port = {name!r}")
             port = EmulatedPort(chain, now=self.clock.now)
             port.setPortName(name)  # errors name the configured port, as a device's do
+            tap = self.tap()
+            if tap is not None:  # bus time: the loop's, plus the wire time of this job so far
+                tap_port(port, tap, lambda: self.clock.now() + port.elapsed_s)
             return InlinePortOwner(port, self.clock)
         self.clock.uses_real_io(f"servo port {name}")  # refused on virtual time, by name
         latency = latency_timer_ms(name)
@@ -531,7 +535,11 @@ class BusScheduler(Actor):
                     f"bus rate; set it to 1 ms: {LATENCY_FIX.format(device=device)}",
                 )
             )
-        return ThreadPortOwner(open_port(name, self.cfg.bus.baudrate))
+        real = open_port(name, self.cfg.bus.baudrate)
+        tap = self.tap()
+        if tap is not None:
+            tap_port(real, tap, self.clock.now)
+        return ThreadPortOwner(real)
 
     # ----------------------------------------------------------------- start-up
 

@@ -84,7 +84,7 @@ from whexar.runtime.devices import DEVICES
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.frame import Frame, FrameDecoder, Mode, Rejected
 from whexar.sensors.gravity import GravityCheck, GravityVerdict
-from whexar.sensors.serial_link import ByteLink, SerialLink
+from whexar.sensors.serial_link import ByteLink, SerialLink, TappedLink
 
 EMULATOR: Final = SENSOR_BOARD.scheme
 """The port name of the in-process board; ``emulator:NAME`` opens the board registered as
@@ -193,10 +193,14 @@ class SensorReader(Actor):
         return DEVICES.get(SENSOR_BOARD, name, setting=f"port = {self.port!r}")
 
     async def _open(self) -> ByteLink:
+        link: ByteLink
         if self.port == EMULATOR or self.port.startswith(f"{EMULATOR}:"):
-            return self._board().open(self.clock)
-        self.clock.uses_real_io(f"sensor board port {self.port}")  # refused on virtual time
-        return await SerialLink.open(self.port, self.baudrate)
+            link = self._board().open(self.clock)
+        else:
+            self.clock.uses_real_io(f"sensor board port {self.port}")  # refused on virtual time
+            link = await SerialLink.open(self.port, self.baudrate)
+        tap = self.tap()
+        return link if tap is None else TappedLink(link, tap, self.clock.now)
 
     # ----------------------------------------------------------------- running
 

@@ -62,6 +62,7 @@ from dynamixel_sdk.protocol2_packet_handler import TXPACKET_MAX_LEN, Protocol2Pa
 from whexar.bus.control_table import Register
 from whexar.bus.protocol import ALERT, crc16
 from whexar.errors import DeviceGoneError
+from whexar.runtime.channels import LinkTap
 from whexar.runtime.clock import Clock, monotonic
 
 T = TypeVar("T")
@@ -573,6 +574,31 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
         data = bytes(rx[:length])
         del rx[:length]
         return data
+
+
+def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
+    """Report every byte the SDK writes to ``port`` and every byte it reads from it.
+
+    ``tap`` gets ``("tx" | "rx", now(), bytes)`` for each write and each read that
+    returned bytes (a recorder: :meth:`whexar.runtime.actor.Actor.tap`); bytes the
+    SDK drops unread with ``clearPort()`` never reached it, so they are not reported.
+    The instance's two methods are wrapped, nothing else: the SDK keeps using the
+    port's own attributes directly, at no extra cost.
+    """
+    write, read = port.writePort, port.readPort
+
+    def write_port(packet: Any) -> Any:
+        tap("tx", now(), bytes(packet))
+        return write(packet)
+
+    def read_port(length: int) -> Any:
+        data = read(length)
+        if data:
+            tap("rx", now(), bytes(data))
+        return data
+
+    port.writePort = write_port
+    port.readPort = read_port
 
 
 def open_port(name: str, baudrate: int) -> Any:

@@ -40,12 +40,13 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import partial
 from typing import Any, ClassVar, Generic, TypeVar, overload
 
 from anyio import CancelScope
 from pydantic import BaseModel, ConfigDict
 
-from whexar.runtime.channels import Inbox, Outbox
+from whexar.runtime.channels import Inbox, LinkObserver, LinkTap, Outbox
 from whexar.runtime.clock import Clock
 from whexar.runtime.messages import Event, Message
 from whexar.runtime.ticker import Ticker
@@ -123,6 +124,7 @@ class ActorContext:
     request_stop: Callable[[str], None]
     request_safe_stop: Callable[[str], None]
     stop_timeout_s: float
+    link_observer: LinkObserver | None = None
 
 
 class Actor:
@@ -180,6 +182,15 @@ class Actor:
     def request_safe_stop(self, reason: str) -> None:
         """Ask the runtime for a safe stop (every actor's :meth:`safe_stop`, then exit 3)."""
         self._ctx.request_safe_stop(f"{self.name}: {reason}")
+
+    def tap(self) -> LinkTap | None:
+        """Where this actor reports the raw bytes of the device link it owns, or ``None``
+        when nobody records them. The link is named after the actor; the bytes go
+        unchanged, in both directions, with the runtime clock's time."""
+        observer = self._ctx.link_observer
+        if observer is None:
+            return None
+        return partial(observer, self.name)
 
     def ticker(self, period_s: float, *, start: float | None = None) -> Ticker:
         """A deadline ticker on the runtime clock whose overruns go to the event stream."""

@@ -79,6 +79,11 @@ from whexar.runtime.messages import Message
 M = TypeVar("M", bound=Message)
 
 Observer = Callable[[str, Message], None]
+LinkObserver = Callable[[str, str, float, bytes], None]
+"""Sees the raw bytes of a device link: ``(link, direction, t, data)``, direction ``"tx"``
+(to the device) or ``"rx"`` (from it), ``t`` on the runtime clock. A recorder is one."""
+LinkTap = Callable[[str, float, bytes], None]
+"""One link's share of a :data:`LinkObserver`: ``(direction, t, data)``."""
 """Called with the channel name and the message on every publish (the message log)."""
 
 

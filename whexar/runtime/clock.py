@@ -102,6 +102,7 @@ __all__ = [
     "monotonic",
     "run",
     "wait_until",
+    "wall_stamp",
 ]
 
 
@@ -396,6 +397,11 @@ def monotonic() -> float:
     device takes.
     """
     return time.perf_counter()
+
+
+def wall_stamp() -> str:
+    """The local date and time as ``YYYYmmdd-HHMMSS``: a default name for a recording."""
+    return time.strftime("%Y%m%d-%H%M%S")
 
 
 _SPIN_S = 0.0003

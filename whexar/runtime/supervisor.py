@@ -76,7 +76,15 @@ from anyio import TASK_STATUS_IGNORED, CancelScope
 from anyio.abc import TaskStatus
 
 from whexar.runtime.actor import Actor, ActorContext
-from whexar.runtime.channels import Channel, ChannelStats, Inbox, Observer, Outbox, Turn
+from whexar.runtime.channels import (
+    Channel,
+    ChannelStats,
+    Inbox,
+    LinkObserver,
+    Observer,
+    Outbox,
+    Turn,
+)
 from whexar.runtime.clock import Clock, VirtualTimeRealIOError, WallAlarm
 from whexar.runtime.errors import UsageError
 from whexar.runtime.messages import (
@@ -161,7 +169,9 @@ def _is_cancellation(exc: BaseException) -> bool:
 class Runtime:
     """Runs one :class:`~whexar.runtime.wiring.Graph`; make a new one for each run.
 
-    ``observer`` is called with every message published; ``safe_stop_hooks``
+    ``observer`` is called with every message published, ``link_observer`` with the
+    raw bytes of every device link whose actor reports them (:meth:`Actor.tap
+    <whexar.runtime.actor.Actor.tap>`); ``safe_stop_hooks``
     run first in a safe stop. ``handle_signals=True`` makes the runtime the
     owner of the process (the ``whexar run`` command): it catches SIGINT and
     SIGTERM and ends the process itself when a stop overruns its bound or a
@@ -174,12 +184,14 @@ class Runtime:
         graph: Graph,
         *,
         observer: Observer | None = None,
+        link_observer: LinkObserver | None = None,
         handle_signals: bool = False,
         safe_stop_hooks: Sequence[SafeStopHook] = (),
     ) -> None:
         self.graph = graph
         self.settings = graph.settings
         self.observer = observer
+        self.link_observer = link_observer
         self.handle_signals = handle_signals
         self.safe_stop_hooks = list(safe_stop_hooks)
         self.channels: dict[str, Channel[Any]] = {}
@@ -352,6 +364,7 @@ class Runtime:
             request_stop=self.request_stop,
             request_safe_stop=self.request_safe_stop,
             stop_timeout_s=self.settings.stop_timeout_s,
+            link_observer=self.link_observer,
         )
 
     async def _supervise(self, slot: _Slot, *, task_status: TaskStatus[None]) -> None:

@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import asyncio
 from collections import deque
+from collections.abc import Callable
 from typing import Protocol
 
 import serial
 import serial_asyncio
 
 from whexar.errors import DeviceGoneError
+from whexar.runtime.channels import LinkTap
 
 
 class ByteLink(Protocol):
@@ -122,3 +124,30 @@ class SerialLink:
 
 
 __all__ = ["ByteLink", "SerialLink"]
+
+
+class TappedLink:
+    """A :class:`ByteLink` that reports every chunk it receives and sends to ``tap``
+    (``("rx" | "tx", now(), bytes)``: a recorder, :meth:`whexar.runtime.actor.Actor.tap`)."""
+
+    def __init__(self, inner: ByteLink, tap: LinkTap, now: Callable[[], float]) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self._tap = tap
+        self._now = now
+
+    async def receive(self) -> bytes:
+        """The next chunk from the device, reported as received."""
+        data = await self.inner.receive()
+        if data:
+            self._tap("rx", self._now(), data)
+        return data
+
+    async def send(self, data: bytes) -> None:
+        """Send ``data``, reported as sent."""
+        self._tap("tx", self._now(), bytes(data))
+        await self.inner.send(data)
+
+    async def aclose(self) -> None:
+        """Close the link under it."""
+        await self.inner.aclose()

@@ -10,6 +10,7 @@
 * :mod:`~whexar.sim.report` and :mod:`~whexar.sim.video` — plots, summary, video;
 * :mod:`~whexar.sim.urdf` — the same robot as URDF, for Foxglove and RViz.
 
-May import: :mod:`whexar.testing`, :mod:`whexar.actors` and everything below them;
+May import: :mod:`whexar.record`, :mod:`whexar.testing`, :mod:`whexar.actors` and everything
+below them;
 never the benchmarks or the command line.
 """

@@ -18,7 +18,7 @@ compare runs.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Awaitable, Callable, Iterable, Mapping
+from collections.abc import Awaitable, Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar, overload
 
@@ -26,7 +26,7 @@ import anyio
 from anyio.abc import TaskStatus
 
 from whexar.errors import UsageError
-from whexar.runtime.channels import ChannelStats
+from whexar.runtime.channels import ChannelStats, LinkObserver, Observer
 from whexar.runtime.clock import run as run_loop
 from whexar.runtime.messages import Event, Message
 from whexar.runtime.supervisor import Runtime
@@ -195,6 +195,16 @@ def _leaf(exc: BaseException) -> BaseException:
     return exc
 
 
+def _fan_out(*observers: Observer) -> Observer:
+    """One observer that hands every message to each of ``observers`` in turn."""
+
+    def each(channel: str, msg: Message) -> None:
+        for observe in observers:
+            observe(channel, msg)
+
+    return each
+
+
 def run_actors(
     graph: Graph | GraphSpec | Mapping[str, Any],
     *,
@@ -205,6 +215,8 @@ def run_actors(
     handle_signals: bool = False,
     deadlock_after_s: float | None = 10.0,
     real_io: bool = False,
+    observers: Sequence[Observer] = (),
+    link_observer: LinkObserver | None = None,
 ) -> RunResult:
     """Run ``graph`` (on virtual time by default) and return everything it published.
 
@@ -218,6 +230,10 @@ def run_actors(
     with :class:`~whexar.runtime.clock.VirtualTimeRealIOError` unless
     ``real_io=True`` (or the graph's ``real_io_on_virtual_time``) says the
     test means it: virtual time runs away while real I/O is pending.
+
+    ``observers`` see every message too, after the log (a recorder);
+    ``link_observer`` sees the raw bytes of the device links
+    (:class:`~whexar.runtime.supervisor.Runtime`).
     """
     if not isinstance(graph, Graph):
         graph = build_graph(graph, external=dict.fromkeys(feeds, HARNESS))
@@ -225,7 +241,12 @@ def run_actors(
         raise UsageError("run_actors needs a duration, a scenario, or both")
     built: Graph = graph
     log = MessageLog()
-    runtime = Runtime(built, observer=log, handle_signals=handle_signals)
+    runtime = Runtime(
+        built,
+        observer=log if not observers else _fan_out(log, *observers),
+        link_observer=link_observer,
+        handle_signals=handle_signals,
+    )
     codes: list[int] = []
 
     async def main() -> float:
