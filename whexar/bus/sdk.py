@@ -579,7 +579,7 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
 def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
     """Report every byte the SDK writes to ``port`` and every byte it reads from it.
 
-    ``tap`` gets ``("tx" | "rx", now(), bytes)`` for each write and each read that
+    ``tap`` gets ``("tx" | "rx", now(), bytes)`` after each write and each read that
     returned bytes (a recorder: :meth:`whexar.runtime.actor.Actor.tap`); bytes the
     SDK drops unread with ``clearPort()`` never reached it, so they are not reported.
     The instance's two methods are wrapped, nothing else: the SDK keeps using the
@@ -588,8 +588,11 @@ def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
     write, read = port.writePort, port.readPort
 
     def write_port(packet: Any) -> Any:
+        sent = write(packet)
+        # Stamped once written: on an emulated port that is the transaction's end in bus
+        # time, which a replay needs to charge the same time for it.
         tap("tx", now(), bytes(packet))
-        return write(packet)
+        return sent
 
     def read_port(length: int) -> Any:
         data = read(length)
