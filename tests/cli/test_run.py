@@ -159,7 +159,8 @@ class Running:
         graph = tmp_path / "graph.toml"
         graph.write_text(textwrap.dedent(wiring))
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "whexar.cli", "run", str(graph)],
+            # Stop bounds and fairness, not recording (its cost is `whexar bench record`).
+            [sys.executable, "-m", "whexar.cli", "run", str(graph), "--no-record"],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
         )

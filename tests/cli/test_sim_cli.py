@@ -16,7 +16,7 @@ def test_json_prints_exactly_the_summary_keys(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     report, video = tmp_path / "report", tmp_path / "run.mp4"
-    args = ["sim", "--scenario", "wheels", "--duration", "2", "--json"]
+    args = ["sim", "--scenario", "wheels", "--duration", "2", "--json", "--no-record"]
     assert main([*args, "--report", str(report), "--video", str(video)]) == 0
     out, err = capsys.readouterr()
     summary = json.loads(out)
@@ -26,6 +26,7 @@ def test_json_prints_exactly_the_summary_keys(
     assert len(summary["state_hash"]) == 64
     assert summary["realtime_factor"] > 0
     assert "report:" in err
+    assert "recording:" not in err
     assert (report / "gait.png").is_file()
     assert (report / "summary.md").is_file()
     frames = imageio.mimread(video, memtest=False)
@@ -33,12 +34,20 @@ def test_json_prints_exactly_the_summary_keys(
     assert frames[0].shape == (480, 640, 3)
 
 
-def test_text_summary_names_the_figures(capsys: pytest.CaptureFixture[str]) -> None:
+def test_text_summary_names_the_figures_and_the_recording(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.chdir(tmp_path)  # recorded by default, under recordings/
+    monkeypatch.delenv("WHEXAR_RECORDINGS")
     assert main(["sim", "--scenario", "slope", "--duration", "1", "--seed", "3"]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert out.startswith("whexar sim: slope")
     for label in ("distance", "cost of transport", "falls", "real-time factor", "state hash"):
         assert label in out
+    (recording,) = (tmp_path / "recordings").glob("slope-*.mcap")
+    assert f"recording: {recording.relative_to(tmp_path)}" in err
+    assert main(["sim", "--scenario", "slope", "--duration", "0.5", "--record", "x.mcap"]) == 0
+    assert (tmp_path / "x.mcap").stat().st_size > 0
 
 
 def test_a_bad_scenario_lists_its_problems_and_exits_1(
@@ -62,7 +71,7 @@ def test_view_without_a_display_is_a_clear_error(
 ) -> None:
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    assert main(["sim", "--view", "--duration", "1"]) == 2
+    assert main(["sim", "--view", "--duration", "1", "--no-record"]) == 2
     assert "display" in capsys.readouterr().err
 
 

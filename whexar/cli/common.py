@@ -5,8 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 from collections.abc import Callable
-from typing import TypeAlias
+from pathlib import Path
+from typing import Final, TypeAlias
+
+from whexar.errors import UsageError
+from whexar.runtime.clock import wall_stamp
 
 Handler: TypeAlias = Callable[[argparse.Namespace], int]
 """A command: parsed arguments in, exit status out."""
@@ -28,3 +33,22 @@ def seconds(value: str) -> float:
     if not math.isfinite(number) or number <= 0:
         raise argparse.ArgumentTypeError(f"{value!r}: expected a number of seconds > 0")
     return number
+
+
+RECORDINGS: Final = "recordings"
+"""The folder runs are recorded into by default, relative to the working directory;
+the environment variable ``WHEXAR_RECORDINGS`` names another."""
+
+
+def default_recording(name: str) -> Path:
+    """Where a run of ``name`` is recorded unless told otherwise: a new file under
+    :data:`RECORDINGS` (made if missing), named after the run and the date."""
+    folder = Path(os.environ.get("WHEXAR_RECORDINGS") or RECORDINGS)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UsageError(
+            f"cannot make {folder}/ for the recording: {exc.strerror or exc}; "
+            "give --record FILE or --no-record"
+        ) from None
+    return folder / f"{Path(name).stem}-{wall_stamp()}.mcap"

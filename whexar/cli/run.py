@@ -24,15 +24,20 @@ import tomllib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from whexar.cli.common import Commands, seconds
+from whexar.cli.common import RECORDINGS, Commands, default_recording, seconds
 from whexar.errors import ConfigError, Problem, UsageError
 from whexar.runtime.messages import ActorFailed, Message
 from whexar.runtime.wiring import EVENTS_CHANNEL
 
 if TYPE_CHECKING:
+    from whexar.record.writer import Recorder
     from whexar.runtime.channels import Observer
     from whexar.runtime.wiring import Graph
 
+RECORD_PERIOD_S = 0.01
+"""How often the recorder writes what is pending: about once per bus cycle."""
+RECORD_BUDGET_S = 0.0008
+"""The longest the recorder writes at a time (the issue allows a cycle 1 ms of delay)."""
 COMMANDS_ACTOR = "commands"
 """The actor ``--commands`` and ``--keyboard`` set the ``source`` of."""
 
@@ -201,17 +206,51 @@ def load_run_graph(args: argparse.Namespace) -> Graph:
 
 
 def _run(args: argparse.Namespace) -> int:
+    import anyio
+
+    from whexar.runtime.channels import fan_out
     from whexar.runtime.clock import run as run_loop
     from whexar.runtime.supervisor import Runtime
 
     graph = load_run_graph(args)
-    observer = None if args.quiet else _event_printer(CLEAR_LINE if args.keyboard else "")
-    runtime = Runtime(graph, handle_signals=True, observer=observer)
+    printer = None if args.quiet else _event_printer(CLEAR_LINE if args.keyboard else "")
+    recorder = None if args.no_record else _recorder(args, graph)
+    observers: list[Observer] = [o for o in (printer, recorder) if o is not None]
+    runtime = Runtime(
+        graph,
+        handle_signals=True,
+        observer=fan_out(*observers) if observers else None,
+        link_observer=None if recorder is None else recorder.link_bytes,
+    )
 
     async def main() -> int:
-        return await runtime.run(duration=args.duration)
+        if recorder is None:
+            return await runtime.run(duration=args.duration)
+        failure: BaseException | None = None
+        code = 0
+        async with anyio.create_task_group() as tg:
+            # The recorder writes between cycles, on the runtime's clock, at most
+            # RECORD_BUDGET_S at a time: no control cycle waits longer for it.
+            tg.start_soon(
+                lambda: recorder.run(
+                    lambda s: runtime.clock.sleep(s), RECORD_PERIOD_S, RECORD_BUDGET_S
+                )
+            )
+            try:
+                code = await runtime.run(duration=args.duration)
+            except BaseException as exc:  # raised as it is, not in a task group's wrapping
+                failure = exc
+            tg.cancel_scope.cancel()
+        if failure is not None:
+            raise failure
+        return code
 
-    code = run_loop(main, virtual=args.virtual)
+    try:
+        code = run_loop(main, virtual=args.virtual)
+    finally:
+        if recorder is not None:
+            recorder.close()
+            print(f"recording: {recorder.path}", flush=True)
     print(f"stopped: {runtime.stop_reason}", flush=True)
     if not args.quiet:
         for stats in runtime.stats():
@@ -222,6 +261,18 @@ def _run(args: argparse.Namespace) -> int:
                 flush=True,
             )
     return code
+
+
+def _recorder(args: argparse.Namespace, graph: Graph) -> Recorder:
+    """The run's recorder: the wiring file attached, the command line in its metadata."""
+    from whexar.record.writer import Recorder
+
+    path = args.record or default_recording(args.graph.stem)
+    return Recorder(
+        path,
+        metadata={"kind": "run", "graph": str(args.graph), "command": " ".join(sys.argv)},
+        attachments={f"wiring{args.graph.suffix}": args.graph.read_bytes()},
+    )
 
 
 def add_commands(commands: Commands) -> None:
@@ -270,4 +321,13 @@ def add_commands(commands: Commands) -> None:
         help="drive from the keyboard (arrows/WASD, space stops, x quits; real time only): "
         f"--set {COMMANDS_ACTOR}.source=keyboard",
     )
+    recording = run_cmd.add_mutually_exclusive_group()
+    recording.add_argument(
+        "--record",
+        type=Path,
+        metavar="FILE.mcap",
+        help="record every message and every byte of the device links into FILE "
+        f"(default: {RECORDINGS}/GRAPH-DATE.mcap)",
+    )
+    recording.add_argument("--no-record", action="store_true", help="do not record the run")
     run_cmd.set_defaults(handler=_run)

@@ -18,6 +18,10 @@ exactly :data:`SUMMARY_KEYS`. ``--report DIR`` writes the plots and tables
 (:mod:`whexar.sim.report`), ``--video FILE.mp4`` renders the run headless
 (:mod:`whexar.sim.video`), ``--view`` shows it in MuJoCo's viewer, paced to
 real time, where a display exists.
+
+Every run is recorded (:mod:`whexar.record`): into ``--record FILE.mcap``, by
+default a new file under ``recordings/`` named after the scenario and the date;
+``--no-record`` records nothing. The summary ends with the recording's path.
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from whexar.cli.common import Commands, print_json, seconds
+from whexar.cli.common import RECORDINGS, Commands, default_recording, print_json, seconds
 from whexar.errors import ConfigError, UsageError
 from whexar.runtime.clock import monotonic, wait_until
 
@@ -216,8 +220,9 @@ def _sim(args: argparse.Namespace) -> int:
         recorder = VideoRecorder(args.video)
     viewer = Viewer() if args.view else None
     progress = Progress(scenario)
+    log = None if args.no_record else args.record or default_recording(scenario.name)
     try:
-        result = scenario.run(on_sample=_callbacks(progress, recorder, viewer))
+        result = scenario.run(on_sample=_callbacks(progress, recorder, viewer), record=log)
     finally:
         progress.finish()
         if recorder is not None:
@@ -241,6 +246,8 @@ def _sim(args: argparse.Namespace) -> int:
             f"video: {args.video} ({recorder.frames} frames; rendering them is in the wall time)",
             file=sys.stderr,
         )
+    if result.recording is not None:
+        print(f"recording: {result.recording}", file=sys.stderr)
     if args.json:
         from whexar.sim.report import json_safe
 
@@ -280,4 +287,12 @@ def add_commands(commands: Commands) -> None:
     sim.add_argument(
         "--view", action="store_true", help="watch it in MuJoCo's viewer (needs a display)"
     )
+    recording = sim.add_mutually_exclusive_group()
+    recording.add_argument(
+        "--record",
+        type=Path,
+        metavar="FILE.mcap",
+        help=f"record every message and byte into FILE (default: {RECORDINGS}/SCENARIO-DATE.mcap)",
+    )
+    recording.add_argument("--no-record", action="store_true", help="do not record the run")
     sim.set_defaults(handler=_sim)

@@ -79,6 +79,18 @@ from whexar.runtime.messages import Message
 M = TypeVar("M", bound=Message)
 
 Observer = Callable[[str, Message], None]
+
+
+def fan_out(*observers: Observer) -> Observer:
+    """One observer that hands every message to each of ``observers`` in turn."""
+
+    def each(channel: str, msg: Message) -> None:
+        for observe in observers:
+            observe(channel, msg)
+
+    return each
+
+
 LinkObserver = Callable[[str, str, float, bytes], None]
 """Sees the raw bytes of a device link: ``(link, direction, t, data)``, direction ``"tx"``
 (to the device) or ``"rx"`` (from it), ``t`` on the runtime clock. A recorder is one."""

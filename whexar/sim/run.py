@@ -19,11 +19,12 @@ and the coordinator stands the robot up from there.
 from __future__ import annotations
 
 import itertools
+import json
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from whexar.actors.messages import (
     AccelImplausible,
@@ -48,6 +49,9 @@ from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
 from whexar.testing.harness import Harness, RunResult, run_actors
 from whexar.testing.walk import walk_graph
+
+if TYPE_CHECKING:
+    from whexar.record.writer import Recorder
 
 Quiet = (ActorStarting, ActorReady, AccelImplausible, AccelPlausible)
 """Events too routine for the progress line."""
@@ -107,6 +111,8 @@ class SimResult:
     duration_s: float
     mass_kg: float
     events: list[Event] = field(default_factory=list)
+    recording: Path | None = None
+    """The MCAP file the run was recorded into, if it was."""
 
     def summary(self) -> dict[str, Any]:
         """The figures of ``whexar sim --json``."""
@@ -184,6 +190,8 @@ def simulate(
     on_sample: Callable[[Sample, SimWorld], None] | None = None,
     timestep: float = TIMESTEP_S,
     sensor_faults: Sequence[SensorFault] = (),
+    record: str | Path | None = None,
+    record_metadata: Mapping[str, str] | None = None,
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
@@ -191,6 +199,11 @@ def simulate(
     ``faults`` a bus fault plan and ``sensor_faults`` the sensors' (:mod:`whexar.sim.faults`);
     ``start`` is (x, y, yaw) of the body on the ground; ``on_sample`` is called with every
     sample (progress lines, video frames).
+
+    ``record`` is an MCAP file to record the run into (:mod:`whexar.record`): every
+    message, the bytes of the servo bus and the sensor link, the body's pose on ``/tf``,
+    the configuration, the wiring and the URDF; ``record_metadata`` goes into its
+    ``run`` metadata (a scenario's name, the command line).
     """
     cfg = load_config(config) if config else RobotConfig()
     model = load_model(cfg, terrain=terrain, timestep=timestep)
@@ -290,25 +303,39 @@ def simulate(
                 fault(timeline[j][1], ending=timeline[j][2])
                 j += 1
             sample(h.log.entries)
+            if recorder is not None:  # between cycles: the body's pose, then what is pending
+                x, y, z = world.base_position
+                qw, qx, qy, qz = world.base_quat
+                recorder.transform(h.now(), "world", "base", (x, y, z), (qx, qy, qz, qw))
+                recorder.write_pending()
             t += SAMPLE_PERIOD_S
             await h.sleep_until(t)
 
+    graph = sim_graph(
+        name,
+        faults=str(faults) if faults else None,
+        config=str(config) if config else None,
+    )
+    recorder = _recorder(record, cfg, config, graph, record_metadata) if record else None
+    observers = () if recorder is None else (recorder,)
     wall = monotonic()  # the real-time factor's denominator
     with (
         DEVICES.registered(SERVO_CHAIN, name, chain),
         DEVICES.registered(SENSOR_BOARD, name, board),
         DEVICES.registered(I2C_BUS, name, i2c),
     ):
-        result = run_actors(
-            sim_graph(
-                name,
-                faults=str(faults) if faults else None,
-                config=str(config) if config else None,
-            ),
-            duration=duration,
-            scenario=scenario,
-            feeds=["commands"],
-        )
+        try:
+            result = run_actors(
+                graph,
+                duration=duration,
+                scenario=scenario,
+                feeds=["commands"],
+                observers=observers,
+                link_observer=None if recorder is None else recorder.link_bytes,
+            )
+        finally:
+            if recorder is not None:
+                recorder.close()
     return SimResult(
         samples=samples,
         run=result,
@@ -317,6 +344,31 @@ def simulate(
         duration_s=duration,
         mass_kg=cfg.robot.mass_kg,
         events=result.log.events(),
+        recording=None if recorder is None else recorder.path,
+    )
+
+
+def _recorder(
+    path: str | Path,
+    cfg: RobotConfig,
+    config: str | Path | None,
+    graph: Mapping[str, Any],
+    metadata: Mapping[str, str] | None,
+) -> Recorder:
+    """The recorder of a run: its configuration, wiring and URDF attached."""
+    from whexar.record.writer import Recorder
+    from whexar.sim.urdf import build_urdf
+
+    attachments: dict[str, str | bytes] = {
+        "wiring.json": json.dumps(graph, indent=1),
+        "robot.urdf": build_urdf(cfg),
+    }
+    if config is not None:
+        attachments["config.toml"] = Path(config).read_bytes()
+    return Recorder(
+        path,
+        metadata={"robot": cfg.robot.name, "kind": "simulation", **(metadata or {})},
+        attachments=attachments,
     )
 
 

@@ -265,8 +265,14 @@ class Scenario:
             out = replace(out, duration_s=duration_s)
         return out
 
-    def run(self, *, on_sample: Callable[[Sample, SimWorld], None] | None = None) -> SimResult:
-        """Run it (:func:`whexar.sim.run.simulate`); ``on_sample`` sees every sample."""
+    def run(
+        self,
+        *,
+        on_sample: Callable[[Sample, SimWorld], None] | None = None,
+        record: str | Path | None = None,
+    ) -> SimResult:
+        """Run it (:func:`whexar.sim.run.simulate`); ``on_sample`` sees every sample,
+        ``record`` is an MCAP file to record the run into."""
         from whexar.sim.run import simulate
 
         return simulate(
@@ -278,6 +284,12 @@ class Scenario:
             sensor_faults=self.spec.sensor_faults,
             start=self.start,
             on_sample=on_sample,
+            record=record,
+            record_metadata={
+                "scenario": self.name,
+                "seed": str(self.seed),
+                "duration_s": f"{self.duration_s:g}",
+            },
         )
 
 

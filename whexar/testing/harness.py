@@ -26,7 +26,7 @@ import anyio
 from anyio.abc import TaskStatus
 
 from whexar.errors import UsageError
-from whexar.runtime.channels import ChannelStats, LinkObserver, Observer
+from whexar.runtime.channels import ChannelStats, LinkObserver, Observer, fan_out
 from whexar.runtime.clock import run as run_loop
 from whexar.runtime.messages import Event, Message
 from whexar.runtime.supervisor import Runtime
@@ -195,16 +195,6 @@ def _leaf(exc: BaseException) -> BaseException:
     return exc
 
 
-def _fan_out(*observers: Observer) -> Observer:
-    """One observer that hands every message to each of ``observers`` in turn."""
-
-    def each(channel: str, msg: Message) -> None:
-        for observe in observers:
-            observe(channel, msg)
-
-    return each
-
-
 def run_actors(
     graph: Graph | GraphSpec | Mapping[str, Any],
     *,
@@ -243,7 +233,7 @@ def run_actors(
     log = MessageLog()
     runtime = Runtime(
         built,
-        observer=log if not observers else _fan_out(log, *observers),
+        observer=log if not observers else fan_out(log, *observers),
         link_observer=link_observer,
         handle_signals=handle_signals,
     )

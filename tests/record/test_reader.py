@@ -1,0 +1,135 @@
+"""A recording cut anywhere, or damaged, reads up to where it ends and says so; `recover`
+makes it a complete file; a recording of another version is refused clearly."""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pytest
+from mcap.reader import make_reader
+from mcap.writer import Writer
+
+from whexar.record.encoding import RecordingError
+from whexar.record.reader import Record, Recording, recover
+
+if TYPE_CHECKING:
+    from tests.record.conftest import RecordedRun
+
+
+def _key(r: Record) -> tuple[str, int, bytes]:
+    return (r.topic, r.log_time, r.data)
+
+
+def test_a_file_cut_anywhere_reads_up_to_where_it_ends(
+    recorded_run: RecordedRun, tmp_path: Path
+) -> None:
+    data = recorded_run.path.read_bytes()
+    full = Counter(_key(r) for r in Recording(recorded_run.path).records())
+    counts = []
+    cut_path = tmp_path / "cut.mcap"
+    for fraction in (0.02, 0.1, 0.3, 0.5, 0.77, 0.95, 0.999):
+        cut = int(len(data) * fraction)
+        cut_path.write_bytes(data[:cut])
+        recording = Recording(cut_path)
+        records = list(recording.records())  # no exception, whatever the cut
+        got = Counter(_key(r) for r in records)
+        assert not got - full  # nothing invented
+        assert [r.log_time for r in records] == sorted(r.log_time for r in records)
+        damage = recording.damage
+        assert damage is not None
+        assert not recording.complete
+        assert damage.offset <= cut
+        assert damage.size == cut
+        text = damage.describe(cut_path)
+        assert "ends early" in text
+        assert f"of {cut:,}" in text
+        if records:
+            assert damage.last_ns is not None
+            assert max(r.log_time for r in records) <= damage.last_ns
+            assert f"t = {damage.last_ns / 1e9:.3f} s" in text
+        counts.append(len(records))
+    assert counts == sorted(counts)
+    assert counts[0] < counts[-1]
+    assert counts[-1] == sum(full.values())  # cut in the index: every message is there
+
+
+def test_a_damaged_chunk_ends_the_readable_part_there(
+    recorded_run: RecordedRun, tmp_path: Path
+) -> None:
+    data = bytearray(recorded_run.path.read_bytes())
+    with open(recorded_run.path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    assert len(summary.chunk_indexes) >= 3
+    third = summary.chunk_indexes[2]
+    middle = third.chunk_start_offset + third.chunk_length // 2
+    data[middle] ^= 0xFF
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    recording = Recording(bad)
+    records = list(recording.records())
+    assert records
+    assert recording.damage is not None
+    assert recording.damage.offset == third.chunk_start_offset
+    assert "a chunk cannot be read" in recording.damage.reason
+    assert max(r.log_time for r in records) <= recording.damage.last_ns  # type: ignore[operator]
+
+
+def test_recover_makes_a_complete_file_of_the_readable_part(
+    recorded_run: RecordedRun, tmp_path: Path
+) -> None:
+    data = recorded_run.path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    readable = [_key(r) for r in Recording(cut).records()]
+    out = tmp_path / "fixed.mcap"
+    report = recover(cut, out)
+    assert report.messages == len(readable) > 0
+    assert "recovered" in report.describe()
+    assert "lost" in report.describe()
+    fixed = Recording(out)
+    assert fixed.complete
+    assert fixed.damage is None
+    assert [_key(r) for r in fixed.records()] == readable
+    assert fixed.metadata["run"] == Recording(recorded_run.path).metadata["run"]
+    assert fixed.metadata["whexar.recovered"]["messages"] == str(len(readable))
+    assert set(fixed.attachments) == {"wiring.toml", "blob.bin"}
+    with open(out, "rb") as f:  # the plain reader needs the summary: it is there now
+        assert sum(1 for _ in make_reader(f).iter_messages()) == len(readable)
+    with pytest.raises(RecordingError, match="another file"):
+        recover(out, out)
+
+
+def _file_with_metadata(path: Path, metadata: dict[str, dict[str, str]]) -> Path:
+    with open(path, "wb") as f:
+        writer = Writer(f)
+        writer.start()
+        for name, values in metadata.items():
+            writer.add_metadata(name, values)
+        writer.finish()  # type: ignore[no-untyped-call]
+    return path
+
+
+def test_a_recording_of_another_version_is_refused_clearly(tmp_path: Path) -> None:
+    other = _file_with_metadata(tmp_path / "old.mcap", {"whexar": {"version": "9.4.1"}})
+    with pytest.raises(RecordingError, match=r"recorded by whexar 9\.4\.1.*use whexar 9\.4\.x"):
+        Recording(other).check_compatible()
+    Recording(other).check_compatible("9.4.7")  # the same major.minor reads it
+    foreign = _file_with_metadata(tmp_path / "foreign.mcap", {})
+    with pytest.raises(RecordingError, match="not a whexar recording"):
+        Recording(foreign).check_compatible()
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [(b"", "is empty"), (b"hello, world\n", "not an MCAP file"), (b"\x89MC", "not an MCAP")],
+)
+def test_what_is_not_mcap_is_a_clear_error(content: bytes, match: str, tmp_path: Path) -> None:
+    path = tmp_path / "x.mcap"
+    path.write_bytes(content)
+    with pytest.raises(RecordingError, match=match):
+        Recording(path)
+    with pytest.raises(RecordingError, match="cannot read"):
+        Recording(tmp_path / "missing.mcap")
