@@ -145,6 +145,28 @@ def test_virtual_time_refuses_real_io_unless_the_graph_allows_it(
     assert main(["run", str(graph), "--virtual", "--duration", "1"]) == EXIT_CLEAN
 
 
+WALK = DEMO.with_name("walk.toml")
+
+
+def test_a_run_is_recorded_by_default_with_the_bus_bytes_and_the_wiring(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from whexar.record.reader import Recording
+
+    folder = tmp_path / "logs"
+    monkeypatch.setenv("WHEXAR_RECORDINGS", str(folder))
+    assert main(["run", str(WALK), "--virtual", "--duration", "2", "--quiet"]) == EXIT_CLEAN
+    (path,) = folder.glob("walk-*.mcap")
+    assert f"recording: {path}" in capsys.readouterr().out
+    log = Recording(path)
+    assert log.complete
+    assert "wiring.toml" in log.attachments
+    topics = {r.topic for r in log.records(decode=False)}
+    assert {"/servo-state", "/goals", "/links/bus", "/joint_states"} <= topics
+    assert main(["run", str(WALK), "--virtual", "--duration", "1", "--no-record"]) == EXIT_CLEAN
+    assert len(list(folder.glob("*.mcap"))) == 1
+
+
 # --------------------------------------------------------------------------- stops, for real
 
 STOP_TIMEOUT_S = 0.5

@@ -30,6 +30,7 @@ SUITES: dict[str, str] = {
     "sensors": "sensor frame decoding speed and frame-to-message latency (real time)",
     "cycle": "CPU per control cycle of the locomotion stack (six legs and the coordinator)",
     "sim": "the simulated WHexaR against real time; CPU per bus cycle by part",
+    "record": "what recording costs the runtime: CPU overhead, a cycle's wait, file size",
 }
 """The suites, each a module of :mod:`whexar.bench` with a ``run(progress)``."""
 

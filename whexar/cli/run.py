@@ -34,10 +34,6 @@ if TYPE_CHECKING:
     from whexar.runtime.channels import Observer
     from whexar.runtime.wiring import Graph
 
-RECORD_PERIOD_S = 0.01
-"""How often the recorder writes what is pending: about once per bus cycle."""
-RECORD_BUDGET_S = 0.0008
-"""The longest the recorder writes at a time (the issue allows a cycle 1 ms of delay)."""
 COMMANDS_ACTOR = "commands"
 """The actor ``--commands`` and ``--keyboard`` set the ``source`` of."""
 
@@ -229,13 +225,9 @@ def _run(args: argparse.Namespace) -> int:
         failure: BaseException | None = None
         code = 0
         async with anyio.create_task_group() as tg:
-            # The recorder writes between cycles, on the runtime's clock, at most
-            # RECORD_BUDGET_S at a time: no control cycle waits longer for it.
-            tg.start_soon(
-                lambda: recorder.run(
-                    lambda s: runtime.clock.sleep(s), RECORD_PERIOD_S, RECORD_BUDGET_S
-                )
-            )
+            # The recorder writes between cycles, on the runtime's clock, a bounded
+            # time at a time (whexar.record.writer.WRITE_BUDGET_S).
+            tg.start_soon(lambda: recorder.run(lambda s: runtime.clock.sleep(s)))
             try:
                 code = await runtime.run(duration=args.duration)
             except BaseException as exc:  # raised as it is, not in a task group's wrapping

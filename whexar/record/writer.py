@@ -86,6 +86,11 @@ from whexar.runtime.messages import MESSAGE_TYPES, Event, Message
 
 __all__ = ["FORMAT", "Recorder", "RecorderStats"]
 
+WRITE_PERIOD_S: Final = 0.01
+"""How often :meth:`Recorder.run` writes what is pending: about once per bus cycle."""
+WRITE_BUDGET_S: Final = 0.0008
+"""The longest :meth:`Recorder.run` writes at a time: the issue lets recording delay a
+control cycle by 1 ms at most; what is left waits for the next period."""
 FORMAT: Final = "whexar-mcap/1"
 """The layout described in this module's docstring (metadata ``whexar``, key ``format``)."""
 
@@ -130,6 +135,8 @@ class RecorderStats:
     """Wall seconds spent in :meth:`Recorder.write_pending` and :meth:`Recorder.close`."""
     flushes: int
     """Chunks closed and flushed on time (``flush_period_s``)."""
+    longest_write_s: float = 0.0
+    """The longest single :meth:`Recorder.write_pending`: how long a cycle waited for it."""
 
 
 class Recorder:
@@ -224,6 +231,7 @@ class Recorder:
         self._dropped = self._dropped_logged = self._errors = 0
         self._max_pending = 0
         self._write_s = 0.0
+        self._longest_write_s = 0.0
         self._flushes = 0
         self._last_flush = monotonic()
         self._last_ns = 1
@@ -309,7 +317,7 @@ class Recorder:
                 else:
                     self._write_transform(*entry[1:])
                 done += 1
-                if budget_s is not None and done % 16 == 0 and monotonic() - start > budget_s:
+                if budget_s is not None and monotonic() - start > budget_s:
                     break
             now = monotonic()
             if now - self._last_flush >= self.flush_period_s:
@@ -318,17 +326,20 @@ class Recorder:
                 self._flushes += 1
         except OSError as exc:
             self._break(exc)
-        self._write_s += monotonic() - start
+        spent = monotonic() - start
+        self._write_s += spent
+        self._longest_write_s = max(self._longest_write_s, spent)
         return done
 
     async def run(
         self,
         sleep: Callable[[float], Awaitable[object]],
-        period_s: float = 0.05,
-        budget_s: float | None = None,
+        period_s: float = WRITE_PERIOD_S,
+        budget_s: float | None = WRITE_BUDGET_S,
     ) -> None:
-        """Write pending entries every ``period_s`` (``sleep`` is the owner's: the
-        runtime clock's, anyio's …) until cancelled; :meth:`close` stays the owner's."""
+        """Write pending entries every ``period_s``, at most ``budget_s`` at a time
+        (``sleep`` is the owner's: the runtime clock's, anyio's …) until cancelled;
+        :meth:`close` stays the owner's."""
         while not self._closed:
             self.write_pending(budget_s)
             await sleep(period_s)
@@ -476,6 +487,7 @@ class Recorder:
             max_pending=self._max_pending,
             write_s=self._write_s,
             flushes=self._flushes,
+            longest_write_s=self._longest_write_s,
         )
 
     @property

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
+import anyio
+
 from whexar.actors.messages import (
     AccelImplausible,
     AccelPlausible,
@@ -51,7 +53,7 @@ from whexar.testing.harness import Harness, RunResult, run_actors
 from whexar.testing.walk import walk_graph
 
 if TYPE_CHECKING:
-    from whexar.record.writer import Recorder
+    from whexar.record.writer import Recorder, RecorderStats
 
 Quiet = (ActorStarting, ActorReady, AccelImplausible, AccelPlausible)
 """Events too routine for the progress line."""
@@ -113,6 +115,8 @@ class SimResult:
     events: list[Event] = field(default_factory=list)
     recording: Path | None = None
     """The MCAP file the run was recorded into, if it was."""
+    recorder_stats: RecorderStats | None = None
+    """What the recorder did (its costs, what it dropped), if the run was recorded."""
 
     def summary(self) -> dict[str, Any]:
         """The figures of ``whexar sim --json``."""
@@ -292,6 +296,15 @@ def simulate(
     )
 
     async def scenario(h: Harness) -> None:
+        if recorder is None:
+            await timeline_and_samples(h)
+            return
+        async with anyio.create_task_group() as tg:
+            # The recorder writes as on the robot: between cycles, a bounded time at once.
+            tg.start_soon(recorder.run, h.sleep)
+            await timeline_and_samples(h)
+
+    async def timeline_and_samples(h: Harness) -> None:
         pending = sorted(commands, key=lambda c: c[0])
         k = j = 0
         t = 0.0
@@ -303,11 +316,10 @@ def simulate(
                 fault(timeline[j][1], ending=timeline[j][2])
                 j += 1
             sample(h.log.entries)
-            if recorder is not None:  # between cycles: the body's pose, then what is pending
+            if recorder is not None:  # the body's pose, for Foxglove's 3D panel
                 x, y, z = world.base_position
                 qw, qx, qy, qz = world.base_quat
                 recorder.transform(h.now(), "world", "base", (x, y, z), (qx, qy, qz, qw))
-                recorder.write_pending()
             t += SAMPLE_PERIOD_S
             await h.sleep_until(t)
 
@@ -345,6 +357,7 @@ def simulate(
         mass_kg=cfg.robot.mass_kg,
         events=result.log.events(),
         recording=None if recorder is None else recorder.path,
+        recorder_stats=None if recorder is None else recorder.stats,
     )
 
 

@@ -1,0 +1,105 @@
+"""``whexar bench record``: what recording a run costs the runtime.
+
+Targets (issue 15): recording costs **≤ 5 %** of the runtime's CPU
+(:data:`OVERHEAD_TARGET_PCT`) and delays no control cycle by more than **1 ms**
+(:data:`DELAY_TARGET_MS`).
+
+What is measured
+----------------
+The first :data:`BENCH_SECONDS` of the ``course`` scenario, the full runtime and
+the physics on virtual time (as ``whexar bench sim``), :data:`REPEATS` times
+without a recording and as many times with one, alternately, so that both see
+the machine in the same state:
+
+* **overhead_pct** — the median wall time with a recording over the median
+  without, less one: on virtual time everything is CPU, so this is the share of
+  the runtime's CPU the recorder adds (handing over, encoding, writing);
+* **max_cycle_delay_ms** — the longest single write of the recorder: it writes
+  between cycles as on the robot (:meth:`~whexar.record.writer.Recorder.run`,
+  every :data:`~whexar.record.writer.WRITE_PERIOD_S`, at most
+  :data:`~whexar.record.writer.WRITE_BUDGET_S` at a time), so that is the
+  longest a cycle can wait for it;
+* **bytes_per_s** — the file's size per simulated second.
+
+Replay speed (``replay_realtime_factor``) comes with ``whexar replay``.
+"""
+
+from __future__ import annotations
+
+import statistics
+import tempfile
+from pathlib import Path
+from typing import Any, Final
+
+from whexar.bench import Figure, Progress, Report
+from whexar.sim.scenario import DEFAULT_SCENARIO, load_scenario
+
+OVERHEAD_TARGET_PCT: Final = 5.0
+DELAY_TARGET_MS: Final = 1.0
+BENCH_SECONDS: Final = 20.0
+REPEATS: Final = 2
+
+
+def measure(
+    seconds: float = BENCH_SECONDS, repeats: int = REPEATS, progress: Progress = None
+) -> dict[str, Any]:
+    """The figures of ``--json`` (see the module docstring)."""
+    say = progress or (lambda _: None)
+    chosen = load_scenario(DEFAULT_SCENARIO).with_overrides(duration_s=seconds)
+    plain: list[float] = []
+    recorded: list[float] = []
+    longest = 0.0
+    size = 0
+    sim_seconds = seconds
+    with tempfile.TemporaryDirectory() as folder:
+        for k in range(repeats):
+            say(f"run {k + 1}/{repeats}: without a recording, then with one…")
+            plain.append(chosen.run().wall_s)
+            path = Path(folder) / f"bench-{k}.mcap"
+            result = chosen.run(record=path)
+            recorded.append(result.wall_s)
+            stats = result.recorder_stats
+            if stats is not None:
+                longest = max(longest, stats.longest_write_s)
+            size = path.stat().st_size
+            sim_seconds = max(result.run.end_time, seconds)
+    without, with_ = statistics.median(plain), statistics.median(recorded)
+    return {
+        "overhead_pct": round(100.0 * (with_ / without - 1.0), 2),
+        "max_cycle_delay_ms": round(1000.0 * longest, 3),
+        "bytes_per_s": round(size / sim_seconds),
+        "wall_s_without": round(without, 3),
+        "wall_s_with": round(with_, 3),
+        "sim_seconds": round(sim_seconds, 3),
+    }
+
+
+def run(progress: Progress = None) -> Report:
+    """The bench: see the module docstring."""
+    say = progress or (lambda _: None)
+    say(f"course, first {BENCH_SECONDS:g} s simulated, without and with a recording…")
+    found = measure(progress=progress)
+    items = [
+        Figure(
+            "overhead_pct",
+            "CPU the recorder adds to the runtime",
+            found["overhead_pct"],
+            "%",
+            OVERHEAD_TARGET_PCT,
+        ),
+        Figure(
+            "max_cycle_delay_ms",
+            "longest single write (a cycle's wait)",
+            found["max_cycle_delay_ms"],
+            "ms",
+            DELAY_TARGET_MS,
+        ),
+    ]
+    notes = [
+        f"{found['sim_seconds']:g} s simulated: {found['wall_s_without']:g} s of wall time "
+        f"without a recording, {found['wall_s_with']:g} s with one (medians of {REPEATS})",
+        f"file: {found['bytes_per_s'] / 1000:.1f} kB per simulated second",
+        "replay speed: not measured yet (whexar replay is still to come)",
+    ]
+    data = {k: found[k] for k in ("overhead_pct", "max_cycle_delay_ms", "bytes_per_s")}
+    return Report("record", items, notes, data=data)
