@@ -88,7 +88,7 @@ __all__ = ["FORMAT", "Recorder", "RecorderStats"]
 
 WRITE_PERIOD_S: Final = 0.01
 """How often :meth:`Recorder.run` writes what is pending: about once per bus cycle."""
-WRITE_BUDGET_S: Final = 0.0008
+WRITE_BUDGET_S: Final = 0.0005
 """The longest :meth:`Recorder.run` writes at a time: the issue lets recording delay a
 control cycle by 1 ms at most; what is left waits for the next period."""
 FORMAT: Final = "whexar-mcap/1"

@@ -22,7 +22,9 @@ Theory of operation
   segment per command; :func:`segments`).
 
 Everything is plotted from the message log and the samples; nothing is run
-again. matplotlib draws with its Agg backend (no display).
+again. The gait diagram, the joint angles and the currents are drawn by
+:mod:`whexar.record.plots` (which ``whexar plot`` draws a recording with), from the
+messages of the run's log; matplotlib draws with its Agg backend (no display).
 """
 
 from __future__ import annotations
@@ -44,37 +46,26 @@ from whexar.actors.messages import (
     MotionCommand,
     ServoStates,
 )
-from whexar.robot import JOINT_NAMES, LEG_NAMES
+from whexar.record import plots
+from whexar.record.plots import new_figure, save_figure
+from whexar.robot import LEG_NAMES
 from whexar.sim.run import travelled
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 
     from whexar.sim.run import Sample, SimResult
 
 G: Final = 9.81
-PLOTTED_JOINTS: Final = (0, 2, 3, 4)
+PLOTTED_JOINTS: Final = plots.FIG_6_2_JOINTS
 """Leg 0's joints in the goal/present plot: coxa, femur, tibia, tarsus (Fig. 6.2)."""
 MIN_SEGMENT_DISTANCE_M: Final = 0.1
 MIN_SEGMENT_SPEED_M_S: Final = 0.02
 """A segment shorter than this, or slower on average, has no cost of transport: it stands
 (sways, sits down) rather than travels, and E/(m g d) of a few centimetres is noise."""
-DPI: Final = 110
 _ROBOT_GEOM_GROUP: Final = 3
 """The geom group :class:`~whexar.sim.world.SimWorld` moves the robot's geoms to."""
-_ACTIVITY_COLOURS: Final = {
-    "seated": "#bbbbbb",
-    "standing_up": "#d9c9a3",
-    "sitting_down": "#d9c9a3",
-    "standing": "#e8e8e8",
-    "walking": "#a6cee3",
-    "riding": "#b2df8a",
-    "hybrid": "#cab2d6",
-    "transition": "#fdbf6f",
-    "flipping": "#fb9a99",
-}
-_JOINT_KEYS: Final = ("coxa", "femur", "tibia", "tarsus")
+TIME_LABEL: Final = "simulated time (s)"
 
 
 @dataclass(frozen=True)
@@ -147,92 +138,40 @@ def segments(
 
 
 # --------------------------------------------------------------------------- data from the log
+# The message-only parts live in whexar.record.plots, which `whexar plot` draws a recording
+# with; these take a SimResult's message log.
 
 
 def swing_intervals(result: SimResult) -> dict[int, list[tuple[float, float]]]:
     """Per leg, the (start, end) times it was in swing, from its LegState messages."""
-    out: dict[int, list[tuple[float, float]]] = {leg: [] for leg in range(len(LEG_NAMES))}
-    started: dict[int, float] = {}
-    last_t = 0.0
-    for m in result.run.log.messages("legs", of=LegState):
-        last_t = m.t
-        if m.phase == "swing":
-            started.setdefault(m.leg, m.t)
-        elif m.leg in started:
-            out[m.leg].append((started.pop(m.leg), m.t))
-    for leg, t0 in started.items():
-        out[leg].append((t0, last_t))
-    return out
+    return plots.swing_intervals(result.run.log.messages("legs", of=LegState))
 
 
 def activity_intervals(result: SimResult) -> list[tuple[float, float, str]]:
     """(start, end, activity) of the coordinator, from its LocomotionState messages."""
-    states = result.run.log.messages("locomotion", of=LocomotionState)
-    out: list[tuple[float, float, str]] = []
-    for m in states:
-        if out and out[-1][2] == m.activity:
-            out[-1] = (out[-1][0], m.t, m.activity)
-        else:
-            if out:
-                out[-1] = (out[-1][0], m.t, out[-1][2])
-            out.append((m.t, m.t, m.activity))
-    return out
+    return plots.activity_intervals(result.run.log.messages("locomotion", of=LocomotionState))
 
 
 def joint_traces(
     result: SimResult, leg: int = 0
 ) -> dict[int, tuple[list[tuple[float, float]], list[tuple[float, float]]]]:
-    """For each of :data:`PLOTTED_JOINTS`: (goals, present) as (t, rad) lists."""
-    source = f"leg-{LEG_NAMES[leg]}"
-    goals: dict[int, list[tuple[float, float]]] = {j: [] for j in PLOTTED_JOINTS}
-    present: dict[int, list[tuple[float, float]]] = {j: [] for j in PLOTTED_JOINTS}
-    for msg in result.run.log.messages("goals", of=JointGoals):
-        if msg.source != source:
-            continue
-        for g in msg.goals:
-            if g.leg == leg and g.joint in goals and g.position_rad is not None:
-                goals[g.joint].append((msg.t, g.position_rad))
-    for states in result.run.log.messages("servo-state", of=ServoStates):
-        for js in states.joints:
-            if js.leg == leg and js.joint in present and js.position_rad is not None:
-                present[js.joint].append((states.t, js.position_rad))
-    return {j: (goals[j], present[j]) for j in PLOTTED_JOINTS}
+    """For each of :data:`PLOTTED_JOINTS`: (goals, present) as (t, rad) lists; goals are
+    those the leg's own actor sent."""
+    return plots.joint_traces(
+        result.run.log.messages("goals", of=JointGoals),
+        result.run.log.messages("servo-state", of=ServoStates),
+        leg,
+        PLOTTED_JOINTS,
+        source=f"leg-{LEG_NAMES[leg]}",
+    )
 
 
 def leg_currents(result: SimResult) -> tuple[list[float], np.ndarray]:
     """Bus cycle times and, per cycle and leg, Σ |Present Current| of the leg's servos (A)."""
-    times: list[float] = []
-    rows: list[list[float]] = []
-    for states in result.run.log.messages("servo-state", of=ServoStates):
-        row = [0.0] * len(LEG_NAMES)
-        for js in states.joints:
-            if js.current_a is not None:
-                row[js.leg] += abs(js.current_a)
-        times.append(states.t)
-        rows.append(row)
-    return times, np.array(rows, dtype=float).reshape(-1, len(LEG_NAMES))
+    return plots.leg_currents(result.run.log.messages("servo-state", of=ServoStates))
 
 
 # --------------------------------------------------------------------------- plots
-
-
-def _figure(width: float, height: float, rows: int = 1, **kw: Any) -> tuple[Figure, Any]:
-    import matplotlib
-
-    matplotlib.use("Agg")  # no display: draw into memory, save as PNG
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(rows, 1, figsize=(width, height), **kw)
-    return fig, axes
-
-
-def _save(fig: Figure, path: Path) -> Path:
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
 
 
 def _hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
@@ -340,7 +279,7 @@ def plot_path(result: SimResult, path: Path, *, title: str = "") -> Path:
         box = [min(box[0], lo_x), max(box[1], hi_x), min(box[2], lo_y), max(box[3], hi_y)]
     x0, x1, y0, y1 = box[0] - margin, box[1] + margin, box[2] - margin, box[3] + margin
     # The figure takes the course's shape (long and narrow), within reason.
-    fig, ax = _figure(11.0, min(8.0, max(3.5, 9.0 * (y1 - y0) / (x1 - x0) + 1.2)))
+    fig, ax = new_figure(11.0, min(8.0, max(3.5, 9.0 * (y1 - y0) / (x1 - x0) + 1.2)))
     _draw_terrain(ax, shapes)
     ax.set_xlim(x0, x1)
     ax.set_ylim(y0, y1)
@@ -356,85 +295,35 @@ def plot_path(result: SimResult, path: Path, *, title: str = "") -> Path:
     ax.set_title(title or "Path of the body centre, seen from above")
     ax.grid(True, lw=0.3)
     ax.legend(loc="upper left", fontsize=8, framealpha=0.8)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_gait(result: SimResult, path: Path, *, window: tuple[float, float] | None = None) -> Path:
     """The gait diagram: each leg's swings as bars (Fig. 3.3), the activity as a band."""
-    fig, ax = _figure(11.0, 4.0)
-    swings = swing_intervals(result)
-    n = len(LEG_NAMES)
-    for row, leg in enumerate(range(n)):
-        bars = [(t0, t1 - t0) for t0, t1 in swings[leg]]
-        ax.broken_barh(bars, (n - 1 - row + 0.15, 0.7), color="#1f3b73", zorder=2)
-    for t0, t1, activity in activity_intervals(result):
-        ax.axvspan(t0, t1, color=_ACTIVITY_COLOURS.get(activity, "#ffffff"), lw=0, zorder=0)
     end = result.samples[-1].t if result.samples else result.duration_s
-    lo, hi = window if window is not None else (0.0, end)
-    ax.set_xlim(lo, hi)
-    ax.set_ylim(0, n)
-    ax.set_yticks([n - 1 - row + 0.5 for row in range(n)])
-    ax.set_yticklabels([f"{LEG_NAMES[leg]} ({leg})" for leg in range(n)])
-    ax.set_xlabel("simulated time (s)")
-    ax.set_title("Gait diagram: dark bars = leg in swing; background = coordinator's activity")
-    from matplotlib.patches import Patch
-
-    seen = dict.fromkeys(a for _, _, a in activity_intervals(result))
-    handles = [Patch(color=_ACTIVITY_COLOURS.get(a, "#ffffff"), label=a) for a in seen]
-    handles.append(Patch(color="#1f3b73", label="swing"))
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
-    ax.grid(True, axis="x", lw=0.3)
-    return _save(fig, path)
+    return plots.draw_gait(
+        swing_intervals(result),
+        activity_intervals(result),
+        path,
+        window=window if window is not None else (0.0, end),
+        time_label=TIME_LABEL,
+    )
 
 
 def plot_joints(result: SimResult, path: Path, *, leg: int = 0) -> Path:
     """Goal against present angle of one leg's coxa, femur, tibia and tarsus (Fig. 6.2)."""
-    fig, axes = _figure(11.0, 8.0, rows=len(PLOTTED_JOINTS), sharex=True)
-    traces = joint_traces(result, leg)
-    for ax, joint in zip(axes, PLOTTED_JOINTS, strict=True):
-        goals, present = traces[joint]
-        if goals:
-            t, q = zip(*goals, strict=True)
-            ax.step(t, np.degrees(q), where="post", color="#d95f02", lw=1.0, label="goal")
-        if present:
-            t, q = zip(*present, strict=True)
-            ax.plot(t, np.degrees(q), color="#1b9e77", lw=1.0, label="present")
-        ax.set_ylabel(f"{JOINT_NAMES[joint]} (°)")
-        ax.grid(True, lw=0.3)
-        ax.legend(loc="upper right", fontsize=8)
-    axes[0].set_title(f"Leg {leg} ({LEG_NAMES[leg]}): goal and present joint angles")
-    axes[-1].set_xlabel("simulated time (s)")
-    return _save(fig, path)
+    return plots.draw_joints(joint_traces(result, leg), path, leg=leg, time_label=TIME_LABEL)
 
 
 def plot_currents(result: SimResult, path: Path) -> Path:
     """Σ |Present Current| of each leg's servos per bus cycle, one row per leg."""
-    n = len(LEG_NAMES)
-    fig, axes = _figure(11.0, 8.0, rows=n, sharex=True, sharey=True)
     times, amps = leg_currents(result)
-    t = np.array(times)
-    width = 1
-    if len(t) > 1:
-        # A moving mean over 0.25 s: the cycle-to-cycle ripple hides the trend.
-        width = max(1, round(0.25 / float(np.median(np.diff(t)))))
-    kernel = np.ones(width) / width
-    for leg, ax in enumerate(axes):
-        if len(t):
-            ax.plot(t, amps[:, leg], color="#c6dbef", lw=0.5)
-            ax.plot(t, np.convolve(amps[:, leg], kernel, mode="same"), color="#08519c", lw=1.0)
-        ax.set_ylabel(f"{LEG_NAMES[leg]} (A)")
-        ax.grid(True, lw=0.3)
-    axes[0].set_title(
-        "Current per leg: Σ |Present Current| of the leg's servos the bus reads "
-        "(light: every cycle; dark: 0.25 s mean)"
-    )
-    axes[-1].set_xlabel("simulated time (s)")
-    return _save(fig, path)
+    return plots.draw_leg_currents(times, amps, path, time_label=TIME_LABEL)
 
 
 def plot_cot(found: Sequence[Segment], path: Path) -> Path:
     """Cost of transport and mean electric power per segment."""
-    fig, (top, bottom) = _figure(11.0, 6.5, rows=2, sharex=True)
+    fig, (top, bottom) = new_figure(11.0, 6.5, rows=2, sharex=True)
     x = np.arange(len(found))
     cots = [s.cost_of_transport if s.cost_of_transport is not None else 0.0 for s in found]
     bars = top.bar(x, cots, color="#3182bd")
@@ -460,7 +349,7 @@ def plot_cot(found: Sequence[Segment], path: Path) -> Path:
     bottom.set_xticklabels(
         [f"{s.t0:.1f}–{s.t1:.1f} s\n{s.label}" for s in found], rotation=30, ha="right", fontsize=8
     )
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # --------------------------------------------------------------------------- the folder
