@@ -27,7 +27,7 @@ import sys
 from collections.abc import Sequence
 
 from whexar import __version__
-from whexar.cli import bench, bus, config, kin, log, model, run, sensors, sim
+from whexar.cli import bench, bus, config, kin, log, model, plot, run, sensors, sim
 from whexar.cli.common import Handler
 from whexar.errors import ConfigError, UsageError
 
@@ -39,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"whexar {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in (config, kin, bench, run, bus, sensors, model, sim, log):
+    for group in (config, kin, bench, run, bus, sensors, model, sim, log, plot):
         group.add_commands(commands)
     return parser
 
