@@ -5,9 +5,12 @@
 * :mod:`~whexar.cli.run` — ``whexar run``: an actor graph from a wiring file;
 * :mod:`~whexar.cli.bus` — ``whexar emulate``, ``whexar bus scan``;
 * :mod:`~whexar.cli.sensors` — ``whexar sensors``: the sensor-board monitor;
-* :mod:`~whexar.cli.bench` — ``whexar bench kin | runtime | bus | sensors``;
+* :mod:`~whexar.cli.bench` — ``whexar bench kin | runtime | bus | sensors | cycle | sim |
+  record``;
 * :mod:`~whexar.cli.model` — ``whexar model --mjcf | --urdf``: the simulation model;
 * :mod:`~whexar.cli.sim` — ``whexar sim``: the simulated WHexaR on a scenario;
+* :mod:`~whexar.cli.log` — ``whexar log info | recover``: recordings;
+* :mod:`~whexar.cli.plot` — ``whexar plot``: plots from a recording;
 * :mod:`~whexar.cli.common` — what they share.
 
 A group adds its commands with ``add_commands(commands)``; each command
