@@ -52,3 +52,18 @@ def default_recording(name: str) -> Path:
             "give --record FILE or --no-record"
         ) from None
     return folder / f"{Path(name).stem}-{wall_stamp()}.mcap"
+
+
+DEFAULT_LIVE_PORT: Final = 8765
+"""The live view's port unless given (Foxglove's default)."""
+
+
+def tcp_port(value: str) -> int:
+    """An argparse type: a TCP port number, 0 (any free port) to 65535."""
+    try:
+        number = int(value)
+    except ValueError:
+        number = -1
+    if not 0 <= number <= 65535:
+        raise argparse.ArgumentTypeError(f"{value!r}: expected a port number 0–65535")
+    return number

@@ -24,12 +24,20 @@ import tomllib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from whexar.cli.common import RECORDINGS, Commands, default_recording, seconds
+from whexar.cli.common import (
+    DEFAULT_LIVE_PORT,
+    RECORDINGS,
+    Commands,
+    default_recording,
+    seconds,
+    tcp_port,
+)
 from whexar.errors import ConfigError, Problem, UsageError
 from whexar.runtime.messages import ActorFailed, Message
 from whexar.runtime.wiring import EVENTS_CHANNEL
 
 if TYPE_CHECKING:
+    from whexar.record.live import LiveView
     from whexar.record.writer import Recorder
     from whexar.runtime.channels import Observer
     from whexar.runtime.wiring import Graph
@@ -210,7 +218,13 @@ def _run(args: argparse.Namespace) -> int:
 
     graph = load_run_graph(args)
     printer = None if args.quiet else _event_printer(CLEAR_LINE if args.keyboard else "")
-    recorder = None if args.no_record else _recorder(args, graph)
+    live = None
+    if args.live is not None:
+        from whexar.record.live import LiveView
+
+        live = LiveView(args.live)
+        print(f"live view: {live.url} (Foxglove: open a WebSocket connection)", flush=True)
+    recorder = None if args.no_record and live is None else _recorder(args, graph, live)
     observers: list[Observer] = [o for o in (printer, recorder) if o is not None]
     runtime = Runtime(
         graph,
@@ -242,7 +256,10 @@ def _run(args: argparse.Namespace) -> int:
     finally:
         if recorder is not None:
             recorder.close()
-            print(f"recording: {recorder.path}", flush=True)
+            if not args.no_record:
+                print(f"recording: {recorder.path}", flush=True)
+        if live is not None:
+            live.close()
     print(f"stopped: {runtime.stop_reason}", flush=True)
     if not args.quiet:
         for stats in runtime.stats():
@@ -255,16 +272,38 @@ def _run(args: argparse.Namespace) -> int:
     return code
 
 
-def _recorder(args: argparse.Namespace, graph: Graph) -> Recorder:
-    """The run's recorder: the wiring file attached, the command line in its metadata."""
+def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> Recorder:
+    """The run's recorder: the wiring file attached, the command line in its metadata;
+    it feeds the live view, and records to nowhere with ``--no-record``."""
+    import os
+
     from whexar.record.writer import Recorder
 
-    path = args.record or default_recording(args.graph.stem)
-    return Recorder(
+    if args.no_record:
+        path: Path | str = os.devnull
+    else:
+        path = args.record or default_recording(args.graph.stem)
+    recorder = Recorder(
         path,
         metadata={"kind": "run", "graph": str(args.graph), "command": " ".join(sys.argv)},
         attachments={f"wiring{args.graph.suffix}": args.graph.read_bytes()},
+        live=live,
     )
+    recorder.robot_description(_urdf(graph))
+    return recorder
+
+
+def _urdf(graph: Graph) -> str:
+    """The URDF of the robot the graph's actors configure (the first ``config`` an actor
+    names; the built-in thesis robot when none does)."""
+    from whexar.config import RobotConfig, load_config
+    from whexar.sim.urdf import build_urdf
+
+    for node in graph.actors:
+        path = getattr(node.params, "config", None)
+        if isinstance(path, str | Path):
+            return build_urdf(load_config(path))
+    return build_urdf(RobotConfig())
 
 
 def add_commands(commands: Commands) -> None:
@@ -322,4 +361,12 @@ def add_commands(commands: Commands) -> None:
         f"(default: {RECORDINGS}/GRAPH-DATE.mcap)",
     )
     recording.add_argument("--no-record", action="store_true", help="do not record the run")
+    run_cmd.add_argument(
+        "--live",
+        type=tcp_port,
+        nargs="?",
+        const=DEFAULT_LIVE_PORT,
+        metavar="PORT",
+        help="serve the run to the Foxglove app on localhost:PORT (default 8765)",
+    )
     run_cmd.set_defaults(handler=_run)

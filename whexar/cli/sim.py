@@ -22,6 +22,8 @@ real time, where a display exists.
 Every run is recorded (:mod:`whexar.record`): into ``--record FILE.mcap``, by
 default a new file under ``recordings/`` named after the scenario and the date;
 ``--no-record`` records nothing. The summary ends with the recording's path.
+``--live [PORT]`` serves what is recorded to the Foxglove app
+(:mod:`whexar.record.live`) and paces the run to real time.
 """
 
 from __future__ import annotations
@@ -37,7 +39,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from whexar.cli.common import RECORDINGS, Commands, default_recording, print_json, seconds
+from whexar.cli.common import (
+    DEFAULT_LIVE_PORT,
+    RECORDINGS,
+    Commands,
+    default_recording,
+    print_json,
+    seconds,
+    tcp_port,
+)
 from whexar.errors import ConfigError, UsageError
 from whexar.runtime.clock import monotonic, wait_until
 
@@ -144,13 +154,27 @@ class Progress:
             self.stream.flush()
 
 
+class Pace:
+    """Holds a run to real time: each sample waits until as much wall time has passed
+    (for a person watching: ``--view``, ``--live``)."""
+
+    def __init__(self) -> None:
+        self._start: float | None = None
+        self._t0 = 0.0
+
+    def __call__(self, sample: Sample, world: SimWorld | None = None) -> None:
+        """Wait until real time reaches this sample."""
+        if self._start is None:
+            self._start, self._t0 = monotonic(), sample.t
+        wait_until(self._start + (sample.t - self._t0))
+
+
 class Viewer:
     """MuJoCo's passive viewer on the running world, paced to real time."""
 
     def __init__(self) -> None:
         self._handle: Any = None
-        self._start = 0.0
-        self._t0 = 0.0
+        self._pace = Pace()
 
     def __call__(self, sample: Sample, world: SimWorld) -> None:
         """Show the world at this sample; sleep until real time catches up."""
@@ -158,11 +182,10 @@ class Viewer:
 
         if self._handle is None:
             self._handle = mujoco.viewer.launch_passive(world.model, world.data)
-            self._start, self._t0 = monotonic(), sample.t
         if not self._handle.is_running():
             return
         self._handle.sync()
-        wait_until(self._start + (sample.t - self._t0))  # real time catches up
+        self._pace(sample)
 
     def close(self) -> None:
         """Close the window."""
@@ -221,10 +244,21 @@ def _sim(args: argparse.Namespace) -> int:
     viewer = Viewer() if args.view else None
     progress = Progress(scenario)
     log = None if args.no_record else args.record or default_recording(scenario.name)
+    live = None
+    if args.live is not None:
+        from whexar.record.live import LiveView
+
+        live = LiveView(args.live)
+        print(f"live view: {live.url} (Foxglove: open a WebSocket connection)", file=sys.stderr)
+    pace = Pace() if live is not None and viewer is None else None
     try:
-        result = scenario.run(on_sample=_callbacks(progress, recorder, viewer), record=log)
+        result = scenario.run(
+            on_sample=_callbacks(progress, recorder, viewer, pace), record=log, live=live
+        )
     finally:
         progress.finish()
+        if live is not None:
+            live.close()
         if recorder is not None:
             recorder.close()
         if viewer is not None:
@@ -295,4 +329,13 @@ def add_commands(commands: Commands) -> None:
         help=f"record every message and byte into FILE (default: {RECORDINGS}/SCENARIO-DATE.mcap)",
     )
     recording.add_argument("--no-record", action="store_true", help="do not record the run")
+    sim.add_argument(
+        "--live",
+        type=tcp_port,
+        nargs="?",
+        const=DEFAULT_LIVE_PORT,
+        metavar="PORT",
+        help="serve the run to the Foxglove app on localhost:PORT (default 8765), "
+        "paced to real time",
+    )
     sim.set_defaults(handler=_sim)

@@ -62,7 +62,7 @@ from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Final
+from typing import IO, Any, Final, Protocol
 
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
@@ -92,6 +92,15 @@ WRITE_BUDGET_S: Final = 0.0005
 """The longest :meth:`Recorder.run` writes at a time: the issue lets recording delay a
 control cycle by 1 ms at most; what is left waits for the next period."""
 FORMAT: Final = "whexar-mcap/1"
+ROBOT_DESCRIPTION: Final = "/robot_description"
+"""The topic of the robot's URDF (:meth:`Recorder.robot_description`)."""
+_DESCRIPTION_SCHEMA: Final = {
+    "title": "whexar.RobotDescription",
+    "description": "The robot's URDF, as ROS's robot_description (std_msgs/String).",
+    "type": "object",
+    "properties": {"data": {"type": "string", "description": "URDF XML"}},
+    "required": ["data"],
+}
 """The layout described in this module's docstring (metadata ``whexar``, key ``format``)."""
 
 _COMPRESSION = {
@@ -109,6 +118,19 @@ _MEDIA_TYPES = {
 
 # Kinds of pending entries: (kind, …) tuples, made in O(1) by the hand-over methods.
 _MESSAGE, _LINK, _TRANSFORM = 0, 1, 2
+
+
+class LiveSink(Protocol):
+    """Where a recorder also sends what it writes: a live view
+    (:class:`whexar.record.live.LiveView`). JSON messages with JSON Schemas."""
+
+    def add_channel(self, channel_id: int, topic: str, schema_name: str, schema: bytes) -> None:
+        """A new channel: its id (the recording's), topic and schema."""
+        ...
+
+    def log(self, channel_id: int, ns: int, data: bytes) -> None:
+        """One message of channel ``channel_id`` at log time ``ns``."""
+        ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -165,6 +187,7 @@ class Recorder:
         max_pending: int = 100_000,
         joint_states: bool = True,
         event_log: bool = True,
+        live: LiveSink | None = None,
     ) -> None:
         if compression not in _COMPRESSION:
             raise RecordingError(
@@ -180,6 +203,7 @@ class Recorder:
         self.max_pending = max_pending
         self._joint_states = joint_states
         self._event_log = event_log
+        self._live = live
         try:
             self._file: IO[bytes] = open(self.path, "wb")  # noqa: SIM115  (closed by close())
         except OSError as exc:
@@ -223,6 +247,7 @@ class Recorder:
         self._pending: deque[tuple[Any, ...]] = deque()
         self._append = self._pending.append
         self._schemas: dict[str, int] = {}
+        self._schema_texts: dict[int, tuple[str, bytes]] = {}
         self._routes: dict[tuple[str, type], tuple[int, MessageCodec[Any]]] = {}
         self._topics: dict[str, int] = {}
         self._failed_types: set[tuple[str, type]] = set()
@@ -268,6 +293,12 @@ class Recorder:
         if len(self._pending) >= self.max_pending:
             self._drop_oldest()
         self._append((_TRANSFORM, t, parent, child, tuple(translation), tuple(rotation_xyzw)))
+
+    def robot_description(self, urdf: str) -> None:
+        """Write the robot's URDF on :data:`ROBOT_DESCRIPTION` (``{"data": URDF}``, as
+        ROS's ``robot_description``), at the start: Foxglove's URDF layer can read it
+        from that topic. Call it once, before the run."""
+        self._add(self._topic(ROBOT_DESCRIPTION), 1, json.dumps({"data": urdf}).encode())
 
     def _drop_oldest(self) -> None:
         try:
@@ -388,9 +419,21 @@ class Recorder:
         data = foxglove.frame_transforms(ns, parent, child, translation, rotation)
         self._add(self._topic("/tf"), ns, data)
 
+    def _channel(self, topic: str, schema_id: int, metadata: dict[str, str]) -> int:
+        """Register an MCAP channel, and the same channel on the live view if there is one."""
+        channel_id: int = self._writer.register_channel(
+            topic, MESSAGE_ENCODING, schema_id, metadata
+        )
+        if self._live is not None:
+            name, schema = self._schema_texts[schema_id]
+            self._live.add_channel(channel_id, topic, name, schema)
+        return channel_id
+
     def _add(self, channel_id: int, ns: int, data: bytes) -> None:
         self._seq = (self._seq + 1) & 0xFFFFFFFF  # MCAP's sequence is a uint32
         self._writer.add_message(channel_id, ns, data, ns, self._seq)
+        if self._live is not None:
+            self._live.log(channel_id, ns, data)
         self._records += 1
         self._last_ns = ns
 
@@ -400,6 +443,7 @@ class Recorder:
             data = schema if isinstance(schema, bytes) else json.dumps(schema).encode()
             known = self._writer.register_schema(name, SCHEMA_ENCODING, data)
             self._schemas[name] = known
+            self._schema_texts[known] = (name, data)
         return known
 
     def _route(self, channel: str, cls: type[Message]) -> tuple[int, MessageCodec[Any]]:
@@ -410,11 +454,8 @@ class Recorder:
             # Unencodable type: its messages go through the error path, once logged.
             msg_codec = _UNENCODABLE
         schema_id = self._schema(cls.__name__, msg_codec.schema_data)
-        channel_id = self._writer.register_channel(
-            f"/{channel}",
-            MESSAGE_ENCODING,
-            schema_id,
-            {"whexar.channel": channel, "whexar.type": type_path(cls)},
+        channel_id = self._channel(
+            f"/{channel}", schema_id, {"whexar.channel": channel, "whexar.type": type_path(cls)}
         )
         route = (channel_id, msg_codec)
         self._routes[(channel, cls)] = route
@@ -433,12 +474,12 @@ class Recorder:
             name, schema = "foxglove.Log", foxglove.LOG_SCHEMA
         elif topic == "/tf":
             name, schema = "foxglove.FrameTransforms", foxglove.FRAME_TRANSFORMS_SCHEMA
+        elif topic == ROBOT_DESCRIPTION:
+            name, schema = "whexar.RobotDescription", _DESCRIPTION_SCHEMA
         else:
             name, schema = LINK_SCHEMA_NAME, LINK_SCHEMA
             metadata = {"whexar.link": topic.removeprefix("/links/")}
-        known = self._writer.register_channel(
-            topic, MESSAGE_ENCODING, self._schema(name, schema), metadata
-        )
+        known = self._channel(topic, self._schema(name, schema), metadata)
         self._topics[topic] = known
         return known
 

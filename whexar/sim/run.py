@@ -21,6 +21,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,7 +54,7 @@ from whexar.testing.harness import Harness, RunResult, run_actors
 from whexar.testing.walk import walk_graph
 
 if TYPE_CHECKING:
-    from whexar.record.writer import Recorder, RecorderStats
+    from whexar.record.writer import LiveSink, Recorder, RecorderStats
 
 Quiet = (ActorStarting, ActorReady, AccelImplausible, AccelPlausible)
 """Events too routine for the progress line."""
@@ -196,6 +197,7 @@ def simulate(
     sensor_faults: Sequence[SensorFault] = (),
     record: str | Path | None = None,
     record_metadata: Mapping[str, str] | None = None,
+    live: LiveSink | None = None,
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
@@ -207,7 +209,9 @@ def simulate(
     ``record`` is an MCAP file to record the run into (:mod:`whexar.record`): every
     message, the bytes of the servo bus and the sensor link, the body's pose on ``/tf``,
     the configuration, the wiring and the URDF; ``record_metadata`` goes into its
-    ``run`` metadata (a scenario's name, the command line).
+    ``run`` metadata (a scenario's name, the command line). ``live`` (a live view,
+    :class:`whexar.record.live.LiveView`) gets everything the recorder writes; with no
+    ``record`` it then records to nowhere.
     """
     cfg = load_config(config) if config else RobotConfig()
     model = load_model(cfg, terrain=terrain, timestep=timestep)
@@ -328,7 +332,9 @@ def simulate(
         faults=str(faults) if faults else None,
         config=str(config) if config else None,
     )
-    recorder = _recorder(record, cfg, config, graph, record_metadata) if record else None
+    if record is None and live is not None:
+        record = os.devnull  # the live view is fed by the recorder
+    recorder = _recorder(record, cfg, config, graph, record_metadata, live) if record else None
     observers = () if recorder is None else (recorder,)
     wall = monotonic()  # the real-time factor's denominator
     with (
@@ -367,6 +373,7 @@ def _recorder(
     config: str | Path | None,
     graph: Mapping[str, Any],
     metadata: Mapping[str, str] | None,
+    live: LiveSink | None = None,
 ) -> Recorder:
     """The recorder of a run: its configuration, wiring and URDF attached."""
     from whexar.record.writer import Recorder
@@ -378,11 +385,14 @@ def _recorder(
     }
     if config is not None:
         attachments["config.toml"] = Path(config).read_bytes()
-    return Recorder(
+    recorder = Recorder(
         path,
         metadata={"robot": cfg.robot.name, "kind": "simulation", **(metadata or {})},
         attachments=attachments,
+        live=live,
     )
+    recorder.robot_description(str(attachments["robot.urdf"]))
+    return recorder
 
 
 __all__ = [

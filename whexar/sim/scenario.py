@@ -81,6 +81,7 @@ from whexar.sim import terrain as tr
 from whexar.sim.faults import SensorFault
 
 if TYPE_CHECKING:
+    from whexar.record.writer import LiveSink
     from whexar.sim.run import Sample, SimResult
     from whexar.sim.world import SimWorld
 
@@ -270,9 +271,10 @@ class Scenario:
         *,
         on_sample: Callable[[Sample, SimWorld], None] | None = None,
         record: str | Path | None = None,
+        live: LiveSink | None = None,
     ) -> SimResult:
         """Run it (:func:`whexar.sim.run.simulate`); ``on_sample`` sees every sample,
-        ``record`` is an MCAP file to record the run into."""
+        ``record`` is an MCAP file to record the run into, ``live`` a live view."""
         from whexar.sim.run import simulate
 
         return simulate(
@@ -285,6 +287,7 @@ class Scenario:
             start=self.start,
             on_sample=on_sample,
             record=record,
+            live=live,
             record_metadata={
                 "scenario": self.name,
                 "seed": str(self.seed),
