@@ -41,11 +41,15 @@ Costs and defaults (measured here: Python 3.11, 2 cores, mcap 1.6, an idle machi
   of robot time to record, against about 92 ms for the runtime itself: far above the
   5 % the recording issue asks for. Two thirds of it is the servo states' JSON and
   their joint states: a binary encoding of ``ServoStates`` is the lever;
-* ``compression="zstd"`` (default): closing a 64 KiB chunk takes 0.07 ms (lz4: 0.05 ms),
-  and the walking graph's file grows by 4.0 MB per minute (lz4: 6.0); the longest
-  :meth:`~Recorder.write_pending` of a run written every 10 ms took 0.9 ms. The notes'
-  1.5–6 ms stalls of Zstd were 1 MiB chunks;
-* ``chunk_size=64 KiB``, ``flush_period_s=0.5``: after SIGKILL the file reads up to its
+* ``compression="zstd"`` (default): compressing a 64 KiB chunk takes 0.07 ms (lz4:
+  0.05 ms), and the walking graph's file grows by 4.0 MB per minute (lz4: 6.0). Closing
+  a chunk costs more than compressing it: mcap's message indexes, built in Python,
+  0.76 ms for 64 KiB of small messages (0.30 without them, but Foxglove's indexed
+  reader needs them), so chunks are 32 KiB. Written every 10 ms, at most
+  :data:`WRITE_BUDGET_S` at a time, the writes between cycles of the course took
+  0.62–0.64 ms at the 99th percentile (``whexar bench record``). The notes' 1.5–6 ms
+  stalls of Zstd were 1 MiB chunks;
+* ``chunk_size=32 KiB``, ``flush_period_s=0.5``: after SIGKILL the file reads up to its
   last flush, so at most one flush period plus the time since the last
   :meth:`~Recorder.write_pending` is lost (the notes: about 1 s with 1 MiB chunks and
   no flush). The tests kill a recording process just before a flush and find its last
@@ -64,7 +68,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Final, Protocol
 
-from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, IndexType, Writer
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 
 from whexar import __version__
 from whexar.actors.messages import ServoStates
@@ -184,7 +188,7 @@ class Recorder:
         *,
         metadata: Mapping[str, str] | None = None,
         attachments: Mapping[str, str | bytes] | None = None,
-        chunk_size: int = 64 * 1024,
+        chunk_size: int = 32 * 1024,
         flush_period_s: float = 0.5,
         compression: str = "zstd",
         max_pending: int = 100_000,
@@ -211,14 +215,12 @@ class Recorder:
             self._file: IO[bytes] = open(self.path, "wb")  # noqa: SIM115  (closed by close())
         except OSError as exc:
             raise RecordingError(f"cannot record to {self.path}: {exc.strerror or exc}") from None
+        # Message indexes stay: Foxglove's indexed reader finds a chunk's messages through
+        # them. mcap builds them in Python as a chunk closes, the longest part of a write
+        # (0.76 ms for a 64 KiB chunk against 0.30 without, measured here): hence smaller
+        # chunks than mcap's default.
         self._writer = Writer(
-            self._file,
-            chunk_size=chunk_size,
-            compression=_COMPRESSION[compression],
-            # No message indexes: mcap builds them in Python when a chunk closes, which
-            # made that write the longest a cycle waited (0.76 against 0.30 ms measured
-            # here, 64 KiB zstd chunks). Readers find messages through the chunk index.
-            index_types=IndexType.ALL & ~IndexType.MESSAGE,
+            self._file, chunk_size=chunk_size, compression=_COMPRESSION[compression]
         )
         self._writer.start(profile="", library=f"whexar {__version__}; {LIBRARY_IDENTIFIER}")
         self._writer.add_metadata(
