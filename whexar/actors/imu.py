@@ -74,7 +74,15 @@ from whexar.runtime.actor import Actor, ActorParams, Output
 from whexar.runtime.devices import DEVICES
 from whexar.sensors.gravity import GravityCheck
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
-from whexar.sensors.lsm9ds1 import ODR_HZ, I2CBus, Lsm9ds1, Reading, Settings, settings
+from whexar.sensors.lsm9ds1 import (
+    ODR_HZ,
+    I2CBus,
+    Lsm9ds1,
+    Reading,
+    Settings,
+    TappedBus,
+    settings,
+)
 
 T = TypeVar("T")
 
@@ -157,6 +165,14 @@ class ImuReader(Actor):
         self.check_at = 0.0
 
     def _opener(self, device: str | None) -> Callable[[], I2CBus]:
+        opener = self._device_opener(device)
+        tap = self.tap()
+        if tap is None:
+            return opener
+        now = self.clock.now
+        return lambda: TappedBus(opener(), tap, now)
+
+    def _device_opener(self, device: str | None) -> Callable[[], I2CBus]:
         number = self.bus_number
         if device is None:
             return lambda: open_bus(number)

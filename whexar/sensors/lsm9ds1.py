@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from typing import Final, Protocol, TypeVar
 
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
+from whexar.runtime.channels import LinkTap
 
 T = TypeVar("T")
 
@@ -178,6 +179,43 @@ class I2CBus(SMBusLike, Protocol):
     """An opened I²C adapter: the driver's calls, and ``close``."""
 
     def close(self) -> None: ...
+
+
+class TappedBus:
+    """An :class:`I2CBus` that reports each transaction to ``tap`` (``("tx" | "rx",
+    now(), bytes)``: a recorder, :meth:`whexar.runtime.actor.Actor.tap`).
+
+    What goes out is the address and the register, and for a write the value; what
+    comes back is the bytes read. A transaction that fails reports what went out only.
+    """
+
+    def __init__(self, inner: I2CBus, tap: LinkTap, now: Callable[[], float]) -> None:
+        self.inner = inner
+        self._tap = tap
+        self._now = now
+
+    def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
+        """Read one register."""
+        self._tap("tx", self._now(), bytes((i2c_addr, register)))
+        value = self.inner.read_byte_data(i2c_addr, register)
+        self._tap("rx", self._now(), bytes((value,)))
+        return value
+
+    def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None:
+        """Write one register."""
+        self._tap("tx", self._now(), bytes((i2c_addr, register, value)))
+        self.inner.write_byte_data(i2c_addr, register, value)
+
+    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]:
+        """Read ``length`` registers from ``register`` on."""
+        self._tap("tx", self._now(), bytes((i2c_addr, register)))
+        data = self.inner.read_i2c_block_data(i2c_addr, register, length)
+        self._tap("rx", self._now(), bytes(data))
+        return data
+
+    def close(self) -> None:
+        """Close the adapter under it."""
+        self.inner.close()
 
 
 # --------------------------------------------------------------------------- pure helpers
