@@ -580,12 +580,13 @@ def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
     """Report every byte the SDK writes to ``port`` and every byte it reads from it.
 
     ``tap`` gets ``("tx" | "rx", now(), bytes)`` after each write and each read that
-    returned bytes (a recorder: :meth:`whexar.runtime.actor.Actor.tap`); bytes the
-    SDK drops unread with ``clearPort()`` never reached it, so they are not reported.
-    The instance's two methods are wrapped, nothing else: the SDK keeps using the
+    returned bytes, and ``("timeout", now(), b"")`` when the SDK's wait for a reply
+    times out (a recorder: :meth:`whexar.runtime.actor.Actor.tap`); bytes the SDK
+    drops unread with ``clearPort()`` never reached it, so they are not reported.
+    The instance's three methods are wrapped, nothing else: the SDK keeps using the
     port's own attributes directly, at no extra cost.
     """
-    write, read = port.writePort, port.readPort
+    write, read, timed_out = port.writePort, port.readPort, port.isPacketTimeout
 
     def write_port(packet: Any) -> Any:
         sent = write(packet)
@@ -600,8 +601,15 @@ def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
             tap("rx", now(), bytes(data))
         return data
 
+    def is_packet_timeout() -> Any:
+        over = timed_out()
+        if over:  # stamped once given up: the bus time the wait cost, for a replay
+            tap("timeout", now(), b"")
+        return over
+
     port.writePort = write_port
     port.readPort = read_port
+    port.isPacketTimeout = is_packet_timeout
 
 
 def open_port(name: str, baudrate: int) -> Any:

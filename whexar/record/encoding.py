@@ -559,7 +559,8 @@ def codec_by_name(name: str, path: str | None = None) -> MessageCodec[Message]:
 
 class LinkBytes(NamedTuple):
     """Raw bytes of device link ``link`` (``"bus"``, ``"sensors"``), sent (``"tx"``) to
-    the device or received (``"rx"``) from it at runtime-clock time ``t``."""
+    the device or received (``"rx"``) from it at runtime-clock time ``t``; a read that
+    gave up waiting is ``"timeout"`` with no data."""
 
     link: str
     direction: str
@@ -579,7 +580,12 @@ LINK_SCHEMA: Mapping[str, Any] = {
     "type": "object",
     "properties": {
         "t": {"type": "number"},
-        "dir": {"type": "string", "enum": ["tx", "rx"], "description": "tx: to the device"},
+        "dir": {
+            "type": "string",
+            "enum": ["tx", "rx", "timeout"],
+            "description": "tx: to the device; rx: from it; timeout: a read gave up "
+            "waiting (no data), at the time it gave up",
+        },
         "data": {"type": "string", "contentEncoding": "base64"},
     },
     "required": ["t", "dir", "data"],

@@ -353,7 +353,7 @@ class Recorder:
                     data = entry[4]
                     # Bytes of one link, direction and time are one record: a sync read
                     # arrives as a status packet per servo, stamped alike (8× fewer records).
-                    while pending and pending[0][:4] == entry[:4]:
+                    while pending and pending[0][:4] == entry[:4] and entry[2] != "timeout":
                         data += pending.popleft()[4]
                     self._write_link(entry[1], entry[2], entry[3], data)
                 else:
