@@ -53,6 +53,12 @@ def test_the_servo_bus_reports_every_packet_it_writes_and_reads() -> None:
     assert all(p.is_status for p in replies)
     kinds = {p.instruction for p in requests}
     assert {Instruction.PING, Instruction.SYNC_READ, Instruction.SYNC_WRITE} <= kinds
+    # The start-up's Fast Sync Read probe: MX firmware does not answer it, the wait times
+    # out, and that is reported (no data, at the bus time the SDK gave up).
+    assert Instruction.FAST_SYNC_READ in kinds
+    timeouts = [(t, data) for _, d, t, data in seen if d == "timeout"]
+    assert timeouts
+    assert all(data == b"" for _, data in timeouts)
 
 
 def test_the_sensor_link_reports_the_board_s_frames_and_the_reader_s_commands() -> None:
