@@ -148,6 +148,21 @@ _STUFFED: Final = b"\xff\xff\xfd\xfd"
 _TO_STUFF: Final = b"\xff\xff\xfd"
 
 
+def _none_of(packet: Any, pattern: bytes, *, crc_bytes: int, max_end: int | None = None) -> bool:
+    """Whether ``packet`` (the SDK's list) surely holds no ``pattern`` from LEN_L up to
+    ``crc_bytes`` before its end, where the SDK's stuffing loops look. ``False`` whenever
+    that loop might do anything else: a packet shorter than its LEN (or longer than
+    ``max_end``), a LEN under 2, items that are not bytes."""
+    length = packet[_LENGTH_L] | (packet[_LENGTH_L + 1] << 8)
+    end = _INSTRUCTION + length
+    if length < 2 or end > len(packet) or (max_end is not None and end > max_end):
+        return False
+    try:
+        return bytes(packet).find(pattern, _LENGTH_L, end - crc_bytes) < 0
+    except (TypeError, ValueError):
+        return False
+
+
 class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
     """dynamixel-sdk's Protocol 2.0 packet handler, with its CRC table built once.
 
@@ -169,15 +184,9 @@ class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
         its LEN or longer than ``TXPACKET_MAX_LEN`` (it raises), a LEN under 2, bytes that
         are not bytes.
         """
-        length = packet[_LENGTH_L] | (packet[_LENGTH_L + 1] << 8)
-        end = _INSTRUCTION + length
-        if length >= 2 and end <= len(packet) and end <= TXPACKET_MAX_LEN:
-            try:
-                # The SDK looks for FF FF FD starting from LEN_L, up to the CRC.
-                if bytes(packet).find(_TO_STUFF, _LENGTH_L, end - 2) < 0:
-                    return packet
-            except (TypeError, ValueError):
-                pass
+        # The SDK looks for FF FF FD starting from LEN_L, up to the CRC.
+        if _none_of(packet, _TO_STUFF, crc_bytes=2, max_end=TXPACKET_MAX_LEN):
+            return packet
         result: list[int] = super().addStuffing(packet)
         return result
 
@@ -187,15 +196,9 @@ class PacketHandler(Protocol2PacketHandler):  # type: ignore[misc]
 
         As in :meth:`addStuffing`, the SDK's loop runs whenever it might do anything else.
         """
-        length = packet[_LENGTH_L] | (packet[_LENGTH_L + 1] << 8)
-        end = _INSTRUCTION + length
-        if length >= 2 and end <= len(packet):
-            try:
-                # The SDK looks for FF FF FD FD starting from LEN_L, up to CRC_L included.
-                if bytes(packet).find(_STUFFED, _LENGTH_L, end - 1) < 0:
-                    return packet
-            except (TypeError, ValueError):
-                pass
+        # The SDK looks for FF FF FD FD starting from LEN_L, up to CRC_L included.
+        if _none_of(packet, _STUFFED, crc_bytes=1):
+            return packet
         result: list[int] = super().removeStuffing(packet)
         return result
 

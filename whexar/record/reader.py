@@ -328,32 +328,38 @@ class Recording:
         heap: list[tuple[int, int, int, bytes]] = []
         seq = 0
         wanted = None if topics is None else set(topics)
-        last_ns: int | None = None
-        with open(self.path, "rb") as f:
-            for i, unit in enumerate(units):
-                try:
-                    records = self._unit_records(f, unit)
-                except Exception as exc:  # zstd, lz4, CRC, struct: each has its own error
-                    self._damaged(unit.offset, last_ns, f"a chunk cannot be read ({_why(exc)})")
-                    break
-                for record in records:
-                    if isinstance(record, McapMessage):
-                        heapq.heappush(heap, (record.log_time, seq, record.channel_id, record.data))
-                        seq += 1
-                    elif isinstance(record, Schema):
-                        schemas[record.id] = record
-                    elif isinstance(record, Channel):
-                        channels[record.id] = self._channel(record, schemas, wanted, decode)
-                last_ns = max(last_ns or 0, unit.end) if unit.end != _NEVER else last_ns
-                bound = later[i + 1]
-                while heap and heap[0][0] <= bound:
-                    made = self._made(heapq.heappop(heap), channels, decode)
-                    if made is not None:
-                        yield made
+        for i, records in self._readable():
+            for record in records:
+                if isinstance(record, McapMessage):
+                    heapq.heappush(heap, (record.log_time, seq, record.channel_id, record.data))
+                    seq += 1
+                elif isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = self._channel(record, schemas, wanted, decode)
+            bound = later[i + 1]
+            while heap and heap[0][0] <= bound:
+                made = self._made(heapq.heappop(heap), channels, decode)
+                if made is not None:
+                    yield made
         while heap:
             made = self._made(heapq.heappop(heap), channels, decode)
             if made is not None:
                 yield made
+
+    def _readable(self) -> Iterator[tuple[int, list[Any]]]:
+        """Each unit's records (with its index), in file order, up to the first that
+        cannot be read: that one ends the readable part (:attr:`damage`)."""
+        last_ns: int | None = None
+        with open(self.path, "rb") as f:
+            for i, unit in enumerate(self._units):
+                try:
+                    records = self._unit_records(f, unit)
+                except Exception as exc:  # zstd, lz4, CRC, struct: each has its own error
+                    self._damaged(unit.offset, last_ns, f"a chunk cannot be read ({_why(exc)})")
+                    return
+                yield i, records
+                last_ns = max(last_ns or 0, unit.end) if unit.end != _NEVER else last_ns
 
     def _unit_records(self, f: IO[bytes], unit: _Unit) -> list[Any]:
         if unit.record is not None:
@@ -534,37 +540,31 @@ def recover(source: str | os.PathLike[str], output: str | os.PathLike[str]) -> R
             writer.add_attachment(0, 0, attachment.name, attachment.media_type, attachment.data)
         schema_ids: dict[int, int] = {}
         channel_ids: dict[int, int] = {}
-        with open(recording.path, "rb") as f:
-            for unit in recording._units:
-                try:
-                    records = recording._unit_records(f, unit)
-                except Exception as exc:  # zstd, lz4, CRC, struct: each has its own error
-                    recording._damaged(unit.offset, last, f"a chunk cannot be read ({_why(exc)})")
-                    break
-                for record in records:
-                    if isinstance(record, Schema):
-                        schema_ids[record.id] = writer.register_schema(
-                            record.name, record.encoding, record.data
-                        )
-                    elif isinstance(record, Channel):
-                        channel_ids[record.id] = writer.register_channel(
-                            record.topic,
-                            record.message_encoding,
-                            schema_ids.get(record.schema_id, 0),
-                            dict(record.metadata),
-                        )
-                    elif isinstance(record, McapMessage) and record.channel_id in channel_ids:
-                        writer.add_message(
-                            channel_ids[record.channel_id],
-                            record.log_time,
-                            record.data,
-                            record.publish_time,
-                            record.sequence,
-                        )
-                        messages += 1
-                        t = record.log_time
-                        first = t if first is None else min(first, t)
-                        last = t if last is None else max(last, t)
+        for _, records in recording._readable():
+            for record in records:
+                if isinstance(record, Schema):
+                    schema_ids[record.id] = writer.register_schema(
+                        record.name, record.encoding, record.data
+                    )
+                elif isinstance(record, Channel):
+                    channel_ids[record.id] = writer.register_channel(
+                        record.topic,
+                        record.message_encoding,
+                        schema_ids.get(record.schema_id, 0),
+                        dict(record.metadata),
+                    )
+                elif isinstance(record, McapMessage) and record.channel_id in channel_ids:
+                    writer.add_message(
+                        channel_ids[record.channel_id],
+                        record.log_time,
+                        record.data,
+                        record.publish_time,
+                        record.sequence,
+                    )
+                    messages += 1
+                    t = record.log_time
+                    first = t if first is None else min(first, t)
+                    last = t if last is None else max(last, t)
         damage = recording.damage
         readable = damage.offset if damage is not None else recording.size
         writer.add_metadata(

@@ -163,9 +163,6 @@ class RecorderStats:
     """Wall seconds spent in :meth:`Recorder.write_pending` and :meth:`Recorder.close`."""
     flushes: int
     """Chunks closed and flushed on time (``flush_period_s``)."""
-    longest_write_s: float = 0.0
-    """The longest single :meth:`Recorder.write_pending` with a budget (between cycles):
-    how long a cycle waited for it."""
 
 
 class Recorder:
@@ -267,7 +264,6 @@ class Recorder:
         self._dropped = self._dropped_logged = self._errors = 0
         self._max_pending = 0
         self._write_s = 0.0
-        self._longest_write_s = 0.0
         self._flushes = 0
         self._last_flush = monotonic()
         self._last_ns = 1
@@ -368,10 +364,7 @@ class Recorder:
                 self._flushes += 1
         except OSError as exc:
             self._break(exc)
-        spent = monotonic() - start
-        self._write_s += spent
-        if budget_s is not None:  # a write between cycles (close's last one is not)
-            self._longest_write_s = max(self._longest_write_s, spent)
+        self._write_s += monotonic() - start
         return done
 
     async def run(
@@ -542,7 +535,6 @@ class Recorder:
             max_pending=self._max_pending,
             write_s=self._write_s,
             flushes=self._flushes,
-            longest_write_s=self._longest_write_s,
         )
 
     @property

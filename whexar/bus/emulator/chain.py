@@ -223,10 +223,13 @@ class ServoChain:
         for servo in self._all:
             servo.power_cycle(t)
 
-    def _hears(self, servo: VirtualServo, t: float) -> bool:
-        """Whether ``servo`` hears a packet at ``t``; if so, the packet feeds its watchdog."""
+    def _hears(self, servo: VirtualServo, t: float, sid: int | None = None) -> bool:
+        """Whether ``servo`` (ID ``sid``, if the caller knows it) hears a packet at ``t``;
+        if so, the packet feeds its watchdog."""
         silent = self.faults.silent_until
-        if (silent and t < silent.get(servo.id, -math.inf)) or servo.booting(t):
+        if silent and t < silent.get(servo.id if sid is None else sid, -math.inf):
+            return False
+        if servo.booting(t):
             return False
         servo.heard(t)
         return True
@@ -323,16 +326,13 @@ class ServoChain:
     # ----------------------------------------------------------------- instructions
 
     def _hearing(self, t: float) -> dict[int, VirtualServo]:
-        """The servos that hear a broadcast packet at ``t`` by ID, in ID order (:meth:`_hears`,
-        written out: every group read and write asks it of every servo)."""
-        silent = self.faults.silent_until
-        out: dict[int, VirtualServo] = {}
-        for sid, servo in zip(self._ids_ordered, self._ordered, strict=True):
-            if (silent and t < silent.get(sid, -math.inf)) or servo.booting(t):
-                continue
-            servo.heard(t)
-            out[sid] = servo
-        return out
+        """The servos that hear a broadcast packet at ``t`` by ID, in ID order (:meth:`_hears`;
+        the IDs cached, as every group read and write asks it of every servo)."""
+        return {
+            sid: servo
+            for sid, servo in zip(self._ids_ordered, self._ordered, strict=True)
+            if self._hears(servo, t, sid)
+        }
 
     def _execute(self, p: Packet, t: float) -> tuple[list[_Reply], bool]:
         inst = p.instruction
