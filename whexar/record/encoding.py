@@ -50,13 +50,14 @@ import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from json.encoder import encode_basestring_ascii
-from typing import Any, Generic, NamedTuple, TypeVar
+from typing import Any, Final, Generic, NamedTuple, TypeVar
 
 import whexar.actors.messages  # noqa: F401  (registers the robot's message types)
 from whexar.errors import UsageError
 from whexar.runtime.messages import MESSAGE_TYPES, Message
 
 __all__ = [
+    "LINK_DIRECTIONS",
     "LINK_SCHEMA",
     "LINK_SCHEMA_NAME",
     "MESSAGE_ENCODING",
@@ -558,15 +559,22 @@ def codec_by_name(name: str, path: str | None = None) -> MessageCodec[Message]:
 
 
 class LinkBytes(NamedTuple):
-    """Raw bytes of device link ``link`` (``"bus"``, ``"sensors"``), sent (``"tx"``) to
-    the device or received (``"rx"``) from it at runtime-clock time ``t``; a read that
-    gave up waiting is ``"timeout"`` with no data."""
+    """Raw bytes of device link ``link`` (``"bus"``, ``"sensors"``, ``"imu"``), sent
+    (``"tx"``) to the device or received (``"rx"``) from it at runtime-clock time ``t``.
+
+    Besides bytes, what a replay needs to play the link back (:data:`LINK_DIRECTIONS`):
+    a read that gave up waiting is ``"timeout"`` with no data; the link was opened
+    (``"open"``, no data) or went away or could not be opened (``"gone"``, the reason in
+    UTF-8); an I/O call failed (``"error"``, ``"ERRNO:message"`` in UTF-8)."""
 
     link: str
     direction: str
     t: float
     data: bytes
 
+
+LINK_DIRECTIONS: Final = ("tx", "rx", "timeout", "open", "gone", "error")
+"""What a :class:`LinkBytes` record can be (its ``dir``)."""
 
 LINK_SCHEMA_NAME = "whexar.LinkBytes"
 """Schema name of the ``/links/{link}`` topics."""
@@ -582,9 +590,11 @@ LINK_SCHEMA: Mapping[str, Any] = {
         "t": {"type": "number"},
         "dir": {
             "type": "string",
-            "enum": ["tx", "rx", "timeout"],
+            "enum": list(LINK_DIRECTIONS),
             "description": "tx: to the device; rx: from it; timeout: a read gave up "
-            "waiting (no data), at the time it gave up",
+            "waiting (no data), at the time it gave up; open: the link was opened (no "
+            "data); gone: it went away or could not be opened (data: the reason, UTF-8); "
+            "error: an I/O call failed (data: 'ERRNO:message', UTF-8)",
         },
         "data": {"type": "string", "contentEncoding": "base64"},
     },

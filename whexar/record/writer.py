@@ -347,9 +347,10 @@ class Recorder:
                     self._write_message(entry[1], entry[2])
                 elif kind == _LINK:
                     data = entry[4]
-                    # Bytes of one link, direction and time are one record: a sync read
-                    # arrives as a status packet per servo, stamped alike (8× fewer records).
-                    while pending and pending[0][:4] == entry[:4] and entry[2] != "timeout":
+                    # Bytes received on one link at one time are one record: a sync read
+                    # arrives as a status packet per servo, stamped alike (8× fewer
+                    # records). Sent packets stay apart: a replay matches them one by one.
+                    while pending and pending[0][:4] == entry[:4] and entry[2] == "rx":
                         data += pending.popleft()[4]
                     self._write_link(entry[1], entry[2], entry[3], data)
                 else:
