@@ -105,6 +105,7 @@ from whexar.bus import control_table as ct
 from whexar.bus.emulator.faults import FaultPlanFile
 from whexar.bus.plan import PlanRead, ReadPlan, resolve_plan
 from whexar.bus.protocol import ALERT, sync_read_bytes, sync_write_bytes
+from whexar.bus.replay import REPLAYED_BUS
 from whexar.bus.sdk import (
     COMM_SUCCESS,
     LATENCY_FIX,
@@ -417,7 +418,8 @@ class BusScheduler(Actor):
         config: ConfigFile | None = None
         """Robot configuration file; absent: the built-in defaults (= config/whexar.toml)."""
         port: str | None = None
-        """Overrides ``bus.port``: a device, a pty, ``emulator`` or ``emulator:NAME``."""
+        """Overrides ``bus.port``: a device, a pty, ``emulator`` or ``emulator:NAME``, or
+        ``replay:NAME`` for a recorded bus played back (:mod:`whexar.bus.replay`)."""
         plan: str | ReadPlan | None = None
         """Overrides ``bus.plan``: a preset name or a plan table."""
         emulator_fast_sync_read: bool = False
@@ -500,6 +502,15 @@ class BusScheduler(Actor):
 
     def _open_owner(self) -> PortOwner:
         name = self.params.port or self.cfg.bus.port
+        if name.startswith(REPLAYED_BUS.scheme + ":"):
+            # A recorded bus played back (whexar replay): bytes and bus times as recorded.
+            replay = DEVICES.get(REPLAYED_BUS, name.split(":", 1)[1], setting=f"port = {name!r}")
+            played = replay.open(self.clock.now)
+            played.setPortName(name)
+            tap = self.tap()
+            if tap is not None:
+                tap_port(played, tap, lambda: self.clock.now() + played.elapsed_s)
+            return InlinePortOwner(played, self.clock)
         if name == EMULATOR or name.startswith(EMULATOR + ":"):
             from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
             from whexar.bus.emulator.port import EmulatedPort

@@ -83,6 +83,7 @@ from whexar.sensors.lsm9ds1 import (
     TappedBus,
     settings,
 )
+from whexar.sensors.replay import REPLAYED_I2C
 
 T = TypeVar("T")
 
@@ -114,9 +115,10 @@ class ImuReader(Actor):
         """Overrides ``imu.address`` (0x6B, or 0x6A with SDO_AG low)."""
         rate_hz: float | None = Field(None, gt=0, le=ODR_HZ[-1], allow_inf_nan=False)
         """Overrides ``imu.rate_hz``."""
-        device: str | None = Field(None, pattern=r"^fake(:.+)?$")
+        device: str | None = Field(None, pattern=r"^(fake(:.+)?|replay:.+)$")
         """``None``: the real ``/dev/i2c-N``; ``"fake"``: a fresh fake chip; ``"fake:NAME"``: the
-        fake bus registered as NAME (:data:`~whexar.sensors.imu_emulator.I2C_BUS`)."""
+        fake bus registered as NAME (:data:`~whexar.sensors.imu_emulator.I2C_BUS`);
+        ``"replay:NAME"``: recorded calls played back (:mod:`whexar.sensors.replay`)."""
         retry_period_s: float = Field(RETRY_PERIOD_S, gt=0, allow_inf_nan=False)
         """How often a lost link is opened again."""
 
@@ -170,7 +172,17 @@ class ImuReader(Actor):
         if tap is None:
             return opener
         now = self.clock.now
-        return lambda: TappedBus(opener(), tap, now)
+
+        def tapped() -> I2CBus:
+            try:
+                bus = opener()
+            except DeviceGoneError as exc:  # a replay opens as the recording did
+                tap("gone", now(), str(exc).encode())
+                raise
+            tap("open", now(), b"")
+            return TappedBus(bus, tap, now)
+
+        return tapped
 
     def _device_opener(self, device: str | None) -> Callable[[], I2CBus]:
         number = self.bus_number
@@ -180,7 +192,9 @@ class ImuReader(Actor):
             fake = FakeSMBus(number)
             fake.attach(self.address, FakeLsm9ds1())
             return lambda: fake
-        key = device.split(":", 1)[1]
+        scheme, key = device.split(":", 1)
+        if scheme == REPLAYED_I2C.scheme:
+            return DEVICES.get(REPLAYED_I2C, key, setting=f"device = {device!r}").opened
         registered = DEVICES.get(I2C_BUS, key, setting=f"device = {device!r}")
         return lambda: registered
 

@@ -84,6 +84,7 @@ from whexar.runtime.devices import DEVICES
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.frame import Frame, FrameDecoder, Mode, Rejected
 from whexar.sensors.gravity import GravityCheck, GravityVerdict
+from whexar.sensors.replay import REPLAYED_BOARD
 from whexar.sensors.serial_link import ByteLink, SerialLink, TappedLink
 
 EMULATOR: Final = SENSOR_BOARD.scheme
@@ -134,7 +135,8 @@ class SensorReader(Actor):
         config: ConfigFile | None = None
         """Robot configuration file; absent: the built-in defaults (= config/whexar.toml)."""
         port: str | None = None
-        """Overrides ``sensor_board.port``: a device, a pty, ``emulator`` or ``emulator:NAME``."""
+        """Overrides ``sensor_board.port``: a device, a pty, ``emulator`` or ``emulator:NAME``,
+        or ``replay:NAME`` for a recorded link played back (:mod:`whexar.sensors.replay`)."""
         baudrate: BoardBaudrate | None = None
         """Overrides ``sensor_board.baudrate`` (a rate the board's firmware can run at)."""
         protocol: Mode | None = None
@@ -193,14 +195,28 @@ class SensorReader(Actor):
         return DEVICES.get(SENSOR_BOARD, name, setting=f"port = {self.port!r}")
 
     async def _open(self) -> ByteLink:
-        link: ByteLink
-        if self.port == EMULATOR or self.port.startswith(f"{EMULATOR}:"):
-            link = self._board().open(self.clock)
-        else:
-            self.clock.uses_real_io(f"sensor board port {self.port}")  # refused on virtual time
-            link = await SerialLink.open(self.port, self.baudrate)
         tap = self.tap()
-        return link if tap is None else TappedLink(link, tap, self.clock.now)
+        try:
+            link = await self._open_link()
+        except DeviceGoneError as exc:
+            if tap is not None:  # a replay opens as the recording did
+                tap("gone", self.now(), str(exc).encode())
+            raise
+        if tap is None:
+            return link
+        tap("open", self.now(), b"")
+        return TappedLink(link, tap, self.clock.now)
+
+    async def _open_link(self) -> ByteLink:
+        if self.port == EMULATOR or self.port.startswith(f"{EMULATOR}:"):
+            return self._board().open(self.clock)
+        if self.port.startswith(f"{REPLAYED_BOARD.scheme}:"):
+            name = self.port.split(":", 1)[1]
+            return DEVICES.get(REPLAYED_BOARD, name, setting=f"port = {self.port!r}").open(
+                self.clock
+            )
+        self.clock.uses_real_io(f"sensor board port {self.port}")  # refused on virtual time
+        return await SerialLink.open(self.port, self.baudrate)
 
     # ----------------------------------------------------------------- running
 

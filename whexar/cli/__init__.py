@@ -11,6 +11,7 @@
 * :mod:`~whexar.cli.sim` — ``whexar sim``: the simulated WHexaR on a scenario;
 * :mod:`~whexar.cli.log` — ``whexar log info | recover``: recordings;
 * :mod:`~whexar.cli.plot` — ``whexar plot``: plots from a recording;
+* :mod:`~whexar.cli.replay` — ``whexar replay``: a recording played back, and checked;
 * :mod:`~whexar.cli.common` — what they share.
 
 A group adds its commands with ``add_commands(commands)``; each command
@@ -18,9 +19,10 @@ imports what it needs when it runs, so ``whexar --help`` stays fast. The
 top layer: it may import every other package of whexar.
 
 Exit codes: 0 success; 1 a configuration with problems, a benchmark that
-missed its target, or a bus scan that found no servo (or could not open its
-port); 2 bad input (an unknown leg, an unreachable target, a malformed
-option); 3 ``whexar run`` stopped after an actor was escalated.
+missed its target, a bus scan that found no servo (or could not open its
+port), or a replay that diverged from its recording; 2 bad input (an unknown
+leg, an unreachable target, a malformed option); 3 ``whexar run`` stopped
+after an actor was escalated.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ import sys
 from collections.abc import Sequence
 
 from whexar import __version__
-from whexar.cli import bench, bus, config, kin, log, model, plot, run, sensors, sim
+from whexar.cli import bench, bus, config, kin, log, model, plot, replay, run, sensors, sim
 from whexar.cli.common import Handler
 from whexar.errors import ConfigError, UsageError
 
@@ -43,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"whexar {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in (config, kin, bench, run, bus, sensors, model, sim, log, plot):
+    for group in (config, kin, bench, run, bus, sensors, model, sim, log, plot, replay):
         group.add_commands(commands)
     return parser
 

@@ -35,6 +35,17 @@ def seconds(value: str) -> float:
     return number
 
 
+def instant(value: str) -> float:
+    """An argument type: a time in seconds ≥ 0 (``--from``, ``--to``)."""
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not math.isfinite(number) or number < 0:
+        raise argparse.ArgumentTypeError(f"{value!r}: expected a time in seconds ≥ 0")
+    return number
+
+
 RECORDINGS: Final = "recordings"
 """The folder runs are recorded into by default, relative to the working directory;
 the environment variable ``WHEXAR_RECORDINGS`` names another."""

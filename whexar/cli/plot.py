@@ -17,22 +17,10 @@ missing or unreadable file, a bad leg or joint or an empty window is bad input (
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
-from whexar.cli.common import Commands
-
-
-def _time(value: str) -> float:
-    """An argument type: a finite time ≥ 0 s."""
-    try:
-        number = float(value)
-    except ValueError:
-        number = math.nan
-    if not math.isfinite(number) or number < 0:
-        raise argparse.ArgumentTypeError(f"{value!r}: expected a time in seconds ≥ 0")
-    return number
+from whexar.cli.common import Commands, instant
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -83,7 +71,7 @@ def add_commands(commands: Commands) -> None:
         "(default: every joint with data)",
     )
     plot.add_argument(
-        "--from", dest="t_from", type=_time, metavar="T", help="start of the window (s)"
+        "--from", dest="t_from", type=instant, metavar="T", help="start of the window (s)"
     )
-    plot.add_argument("--to", dest="t_to", type=_time, metavar="T", help="end of the window (s)")
+    plot.add_argument("--to", dest="t_to", type=instant, metavar="T", help="end of the window (s)")
     plot.set_defaults(handler=_plot)

@@ -37,6 +37,7 @@ from whexar.runtime.messages import ActorFailed, Message
 from whexar.runtime.wiring import EVENTS_CHANNEL
 
 if TYPE_CHECKING:
+    from whexar.config import RobotConfig
     from whexar.record.live import LiveView
     from whexar.record.writer import Recorder
     from whexar.runtime.channels import Observer
@@ -273,37 +274,45 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> Recorder:
-    """The run's recorder: the wiring file attached, the command line in its metadata;
-    it feeds the live view, and records to nowhere with ``--no-record``."""
+    """The run's recorder: the wiring file and the robot configuration attached, the
+    command line in its metadata; it feeds the live view, and records to nowhere with
+    ``--no-record``."""
     import os
 
+    from whexar.record.replay import CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT
     from whexar.record.writer import Recorder
+    from whexar.sim.urdf import build_urdf
 
     if args.no_record:
         path: Path | str = os.devnull
     else:
         path = args.record or default_recording(args.graph.stem)
-    recorder = Recorder(
-        path,
-        metadata={"kind": "run", "graph": str(args.graph), "command": " ".join(sys.argv)},
-        attachments={f"wiring{args.graph.suffix}": args.graph.read_bytes()},
-        live=live,
-    )
-    recorder.robot_description(_urdf(graph))
+    config, cfg = _robot_config(graph)
+    attachments: dict[str, str | bytes] = {
+        f"wiring{args.graph.suffix}": args.graph.read_bytes(),
+        # Every value the run used, defaults too: a replay finds out whether they changed.
+        EFFECTIVE_CONFIG_ATTACHMENT: cfg.model_dump_json(indent=1),
+    }
+    if config is not None:
+        attachments[CONFIG_ATTACHMENT] = config.read_bytes()
+    metadata = {"kind": "run", "graph": str(args.graph), "command": " ".join(sys.argv)}
+    if args.duration is not None:
+        metadata["duration_s"] = repr(float(args.duration))
+    recorder = Recorder(path, metadata=metadata, attachments=attachments, live=live)
+    recorder.robot_description(build_urdf(cfg))
     return recorder
 
 
-def _urdf(graph: Graph) -> str:
-    """The URDF of the robot the graph's actors configure (the first ``config`` an actor
-    names; the built-in thesis robot when none does)."""
+def _robot_config(graph: Graph) -> tuple[Path | None, RobotConfig]:
+    """The robot configuration the graph's actors read (the first ``config`` an actor
+    names; the built-in thesis robot when none does), and its file."""
     from whexar.config import RobotConfig, load_config
-    from whexar.sim.urdf import build_urdf
 
     for node in graph.actors:
         path = getattr(node.params, "config", None)
         if isinstance(path, str | Path):
-            return build_urdf(load_config(path))
-    return build_urdf(RobotConfig())
+            return Path(path), load_config(path)
+    return None, RobotConfig()
 
 
 def add_commands(commands: Commands) -> None:

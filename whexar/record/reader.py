@@ -308,11 +308,18 @@ class Recording:
     # ------------------------------------------------------------------ records
 
     def records(
-        self, topics: Collection[str] | None = None, *, decode: bool = True
+        self,
+        topics: Collection[str] | None = None,
+        *,
+        decode: bool = True,
+        file_order: bool = False,
     ) -> Iterator[Record]:
         """Every readable message (of ``topics``, if given), in log-time order.
 
-        Messages with equal log times come in the order they were written. If a chunk
+        Messages with equal log times come in the order they were written;
+        ``file_order`` yields every message in the order it was written instead (the
+        order the runtime published them: an actor may stamp a message earlier than one
+        published before it). If a chunk
         turns out damaged, iteration ends after everything before it and
         :attr:`damage` says where. Raises :class:`RecordingError` for a message that
         does not fit its type (a recording of another version: see
@@ -331,8 +338,14 @@ class Recording:
         for i, records in self._readable():
             for record in records:
                 if isinstance(record, McapMessage):
-                    heapq.heappush(heap, (record.log_time, seq, record.channel_id, record.data))
+                    item = (record.log_time, seq, record.channel_id, record.data)
                     seq += 1
+                    if file_order:
+                        made = self._made(item, channels, decode)
+                        if made is not None:
+                            yield made
+                        continue
+                    heapq.heappush(heap, item)
                 elif isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, Channel):

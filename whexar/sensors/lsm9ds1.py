@@ -38,9 +38,10 @@ The magnetometer (its own I²C address, 0x1E/0x1C) is not used.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import struct
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Final, Protocol, TypeVar
 
@@ -186,7 +187,8 @@ class TappedBus:
     now(), bytes)``: a recorder, :meth:`whexar.runtime.actor.Actor.tap`).
 
     What goes out is the address and the register, and for a write the value; what
-    comes back is the bytes read. A transaction that fails reports what went out only.
+    comes back is the bytes read. A transaction that fails reports what went out, then
+    ``error`` with ``"ERRNO:message"``: what a replay raises again.
     """
 
     def __init__(self, inner: I2CBus, tap: LinkTap, now: Callable[[], float]) -> None:
@@ -197,25 +199,36 @@ class TappedBus:
     def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
         """Read one register."""
         self._tap("tx", self._now(), bytes((i2c_addr, register)))
-        value = self.inner.read_byte_data(i2c_addr, register)
+        with self._failing():
+            value = self.inner.read_byte_data(i2c_addr, register)
         self._tap("rx", self._now(), bytes((value,)))
         return value
 
     def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None:
         """Write one register."""
         self._tap("tx", self._now(), bytes((i2c_addr, register, value)))
-        self.inner.write_byte_data(i2c_addr, register, value)
+        with self._failing():
+            self.inner.write_byte_data(i2c_addr, register, value)
 
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]:
         """Read ``length`` registers from ``register`` on."""
         self._tap("tx", self._now(), bytes((i2c_addr, register)))
-        data = self.inner.read_i2c_block_data(i2c_addr, register, length)
+        with self._failing():
+            data = self.inner.read_i2c_block_data(i2c_addr, register, length)
         self._tap("rx", self._now(), bytes(data))
         return data
 
     def close(self) -> None:
         """Close the adapter under it."""
         self.inner.close()
+
+    @contextlib.contextmanager
+    def _failing(self) -> Iterator[None]:
+        try:
+            yield
+        except OSError as exc:
+            self._tap("error", self._now(), f"{exc.errno}:{exc.strerror}".encode())
+            raise
 
 
 # --------------------------------------------------------------------------- pure helpers

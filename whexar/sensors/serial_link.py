@@ -137,16 +137,25 @@ class TappedLink:
         self._now = now
 
     async def receive(self) -> bytes:
-        """The next chunk from the device, reported as received."""
-        data = await self.inner.receive()
+        """The next chunk from the device, reported as received; the device's going
+        away is reported as ``gone`` with the reason."""
+        try:
+            data = await self.inner.receive()
+        except DeviceGoneError as exc:
+            self._tap("gone", self._now(), str(exc).encode())
+            raise
         if data:
             self._tap("rx", self._now(), data)
         return data
 
     async def send(self, data: bytes) -> None:
-        """Send ``data``, reported as sent."""
+        """Send ``data``, reported as sent (and ``gone``, if the device went away)."""
         self._tap("tx", self._now(), bytes(data))
-        await self.inner.send(data)
+        try:
+            await self.inner.send(data)
+        except DeviceGoneError as exc:
+            self._tap("gone", self._now(), str(exc).encode())
+            raise
 
     async def aclose(self) -> None:
         """Close the link under it."""

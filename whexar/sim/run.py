@@ -334,7 +334,8 @@ def simulate(
     )
     if record is None and live is not None:
         record = os.devnull  # the live view is fed by the recorder
-    recorder = _recorder(record, cfg, config, graph, record_metadata, live) if record else None
+    metadata = {"duration_s": repr(float(duration)), **(record_metadata or {})}
+    recorder = _recorder(record, cfg, config, graph, metadata, live) if record else None
     observers = () if recorder is None else (recorder,)
     wall = monotonic()  # the real-time factor's denominator
     with (
@@ -376,15 +377,18 @@ def _recorder(
     live: LiveSink | None = None,
 ) -> Recorder:
     """The recorder of a run: its configuration, wiring and URDF attached."""
+    from whexar.record.replay import CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT
     from whexar.record.writer import Recorder
     from whexar.sim.urdf import build_urdf
 
     attachments: dict[str, str | bytes] = {
         "wiring.json": json.dumps(graph, indent=1),
         "robot.urdf": build_urdf(cfg),
+        # Every value the run used, defaults too: a replay finds out whether they changed.
+        EFFECTIVE_CONFIG_ATTACHMENT: cfg.model_dump_json(indent=1),
     }
     if config is not None:
-        attachments["config.toml"] = Path(config).read_bytes()
+        attachments[CONFIG_ATTACHMENT] = Path(config).read_bytes()
     recorder = Recorder(
         path,
         metadata={"robot": cfg.robot.name, "kind": "simulation", **(metadata or {})},

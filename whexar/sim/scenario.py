@@ -291,7 +291,6 @@ class Scenario:
             record_metadata={
                 "scenario": self.name,
                 "seed": str(self.seed),
-                "duration_s": f"{self.duration_s:g}",
             },
         )
 

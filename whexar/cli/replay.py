@@ -1,0 +1,235 @@
+"""``whexar replay``: a recording played back through the same actors, and checked.
+
+``whexar replay LOG [--from T] [--to T] [--speed X | --fast] [--check] [--config FILE]
+[--record FILE] [--live [PORT]] [--json]`` (:mod:`whexar.record.replay`): the recorded
+servo-bus, sensor-link and IMU bytes go back in through the SDK's port, the frame
+decoder and the I²C calls; the recorded motion commands are fed at their times; the
+actors run on virtual time. By default as fast as the CPU allows; ``--speed X`` paces
+it at X times real time (``--live`` alone paces it at 1×).
+
+``--check`` compares every message with the recorded one and exits 1 at the first
+divergence, naming the channel, the time, the field and both values: with an edited
+configuration (``--config``) or code, a regression test on a real log.
+
+A progress line on stderr (redrawn on a terminal, every 10 replayed seconds
+otherwise); the summary on stdout (``--json``: one JSON object). Exit status: 0, 1 a
+divergence, 2 bad input (a missing, damaged-beyond-use or incompatible recording, a
+bad window).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import shutil
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+from whexar.cli.common import DEFAULT_LIVE_PORT, Commands, instant, print_json, tcp_port
+from whexar.runtime.clock import monotonic
+
+if TYPE_CHECKING:
+    from whexar.record.replay import ReplayResult
+
+CLEAR_LINE: Final = "\r\x1b[K"
+LOG_EVERY_S: Final = 10.0
+"""Replayed seconds between two progress lines when stderr is no terminal."""
+BAR: Final = 24
+"""Width of the progress bar, in characters."""
+
+
+class Progress:
+    """The progress line: ``progress(t, end)`` callbacks of :func:`~whexar.record.replay.replay`."""
+
+    def __init__(self, stream: Any = None) -> None:
+        self.stream = stream if stream is not None else sys.stderr
+        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._wall = monotonic()
+        self._logged = -math.inf
+
+    def __call__(self, t: float, end: float) -> None:
+        """Redraw (or, off a terminal, print every :data:`LOG_EVERY_S`) the line."""
+        if not self.live and t - self._logged < LOG_EVERY_S and t < end:
+            return
+        self._logged = t
+        self._write(self.line(t, end) if self.live else self.line(t, end) + "\n")
+
+    def line(self, t: float, end: float) -> str:
+        """``[#####-----]  12.0/60.0 s  14.2× real time  4 s left``."""
+        share = min(1.0, t / end) if end > 0 else 1.0
+        done = round(share * BAR)
+        wall = monotonic() - self._wall
+        rate = t / wall if wall > 0 else math.inf
+        left = (end - t) / rate if rate > 0 else math.inf
+        text = (
+            f"[{'#' * done}{'-' * (BAR - done)}] {t:6.1f}/{end:.1f} s  "
+            f"{rate:5.1f}× real time  {left:4.0f} s left"
+        )
+        if self.live:
+            width = shutil.get_terminal_size().columns - 1
+            return CLEAR_LINE + text[:width]
+        return text
+
+    def finish(self) -> None:
+        """End the live line so that what follows starts on a fresh one."""
+        if self.live:
+            self._write(CLEAR_LINE)
+
+    def _write(self, text: str) -> None:
+        with contextlib.suppress(OSError):
+            self.stream.write(text)
+            self.stream.flush()
+
+
+def summary(result: ReplayResult) -> dict[str, Any]:
+    """The figures of ``whexar replay --json``."""
+    d = result.divergence
+    return {
+        "recording": str(result.path),
+        "replayed_s": result.duration_s,
+        "recorded_s": result.recorded_s,
+        "wall_s": result.wall_s,
+        "realtime_factor": result.realtime_factor,
+        "checked": result.checked,
+        "compared": result.compared,
+        "divergence": None
+        if d is None
+        else {
+            "kind": d.kind,
+            "channel": d.channel,
+            "t": d.t,
+            "what": d.what,
+            "recorded": d.recorded,
+            "replayed": d.replayed,
+        },
+        "fed": result.fed,
+        "links": result.links,
+        "dropped": {
+            name: {k: v for k, v in s.dropped.items() if v}
+            for name, s in result.channels.items()
+            if any(s.dropped.values())
+        },
+        "config_changes": result.config_changes,
+        "damage": result.damage,
+    }
+
+
+def summary_text(result: ReplayResult) -> str:
+    """The summary for the terminal."""
+    lines = [
+        f"whexar replay: {result.path}",
+        f"  replayed      {result.duration_s:.3f} of {result.recorded_s:.3f} s in "
+        f"{result.wall_s:.2f} s ({result.realtime_factor:.1f}× real time)",
+    ]
+    for channel, count in result.fed.items():
+        lines.append(f"  fed           {channel}: {count} recorded messages")
+    for name, what in result.links.items():
+        lines.append(f"  link {name:<9}{what}")
+    for change in result.config_changes:
+        lines.append(f"  config        {change}")
+    if result.damage:
+        lines.append(f"  recording     {result.damage}")
+    if result.checked:
+        if result.divergence is None:
+            lines.append(f"  check         {result.compared} messages agree with the recording")
+        else:
+            lines.append(f"  check         {result.compared} messages agreed, then:")
+            lines.append("  " + result.divergence.describe().replace("\n", "\n  "))
+    return "\n".join(lines)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from whexar.record.replay import replay
+
+    live = None
+    if args.live is not None:
+        from whexar.record.live import LiveView
+
+        live = LiveView(args.live)
+        print(f"live view: {live.url} (Foxglove: open a WebSocket connection)", file=sys.stderr)
+    speed = None if args.fast else args.speed or (1.0 if live is not None else None)
+    progress = Progress()
+    try:
+        result = replay(
+            args.log,
+            start=args.t_from or 0.0,
+            stop=args.t_to,
+            speed=speed,
+            check=args.check,
+            config=args.config,
+            record=args.record,
+            live=live,
+            progress=None if args.json else progress,
+        )
+    finally:
+        progress.finish()
+        if live is not None:
+            live.close()
+    if args.json:
+        print_json(summary(result))
+    else:
+        print(summary_text(result), flush=True)
+        if args.record is not None:
+            print(f"recording: {args.record}", flush=True)
+    return 1 if result.divergence is not None else 0
+
+
+def _speed(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not math.isfinite(number) or number <= 0:
+        raise argparse.ArgumentTypeError(f"{value!r}: expected a factor > 0 (1 = real time)")
+    return number
+
+
+def add_commands(commands: Commands) -> None:
+    """Add this group's commands to the ``whexar`` command table."""
+    cmd = commands.add_parser(
+        "replay",
+        help="play a recording back through the same actors; --check compares every message",
+        description="Play a recording (MCAP) back: its servo-bus, sensor-link and IMU bytes "
+        "go in through the same edges the real transports use (dynamixel-sdk's port, the "
+        "frame decoder, the I²C calls), its motion commands are fed at their times, and "
+        "the actors run on virtual time. The actors carry state from the start, so a "
+        "replay always starts at the recording's start; --from is where pacing and the "
+        "check begin. Exit status 1 when --check finds a divergence.",
+    )
+    cmd.add_argument("log", type=Path, metavar="LOG", help="the recording (.mcap)")
+    cmd.add_argument(
+        "--from", dest="t_from", type=instant, metavar="T", help="check and pace from T (s)"
+    )
+    cmd.add_argument("--to", dest="t_to", type=instant, metavar="T", help="stop at T (s)")
+    pace = cmd.add_mutually_exclusive_group()
+    pace.add_argument(
+        "--speed", type=_speed, metavar="X", help="X times real time (default: as fast as it goes)"
+    )
+    pace.add_argument(
+        "--fast", action="store_true", help="as fast as it goes, even with --live (the default)"
+    )
+    cmd.add_argument(
+        "--check",
+        action="store_true",
+        help="compare every message with the recorded one; exit 1 at the first divergence",
+    )
+    cmd.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="replay with this robot configuration instead of the recorded one",
+    )
+    cmd.add_argument("--record", type=Path, metavar="FILE.mcap", help="record the replay into FILE")
+    cmd.add_argument(
+        "--live",
+        type=tcp_port,
+        nargs="?",
+        const=DEFAULT_LIVE_PORT,
+        metavar="PORT",
+        help="serve the replay to the Foxglove app on localhost:PORT (default 8765), "
+        "at real time unless --speed or --fast",
+    )
+    cmd.add_argument("--json", action="store_true", help="print the summary as JSON")
+    cmd.set_defaults(handler=_replay)

@@ -1,0 +1,695 @@
+"""Replay: a recording's device bytes played back through the same actors, on virtual time.
+
+Theory of operation
+-------------------
+A recording holds the wiring of the run, its robot configuration, every byte of its
+device links with its time, and every message every actor published
+(:mod:`whexar.record.writer`). :func:`replay` rebuilds the graph from the recorded
+wiring with each device-owning actor pointed at its link played back — the bus
+scheduler at :class:`~whexar.bus.replay.BusReplay` (through dynamixel-sdk, which
+parses the recorded replies again), the sensor reader at
+:class:`~whexar.sensors.replay.BoardReplay` (through the frame decoder), the IMU
+reader at :class:`~whexar.sensors.replay.I2CReplay` — and feeds the channels no
+actor of the graph publishes (the motion commands) with their recorded messages at
+their recorded times. A command source (keyboard, script) is such a feed too: its
+actor is left out. Every other actor is the one the robot runs, on virtual time, so
+the replay is deterministic and runs as fast as the CPU allows, or paced
+(``speed``).
+
+Checking (``check=True``): every message an actor publishes is compared, channel by
+channel and in order, with the recorded one: its type, then each field, floats
+within :data:`FLOAT_TOLERANCE` (relative, at least absolute), everything else
+exactly. The first difference stops the replay and is reported as a
+:class:`Divergence` naming the channel, the time, the field and both values; so are
+a packet the code wrote on a link that differs from the recorded one, and recorded
+messages the replay never published. With the code and configuration of the
+recording, nothing diverges; with an edited threshold or code, the replay says
+where the behaviour first changed on a real log.
+
+Configuration: the recorded one (its file, attached as ``config.toml``, or the
+built-in). A recording whose built-in configuration is not this version's (its
+``robot-config.json`` differs) is refused, naming the keys, unless ``config``
+gives the file to replay with (the ``--config`` override).
+
+Time window: actors carry state from the start, so a replay always starts at the
+recording's start. ``start`` is where the check and the pacing begin (before it the
+replay runs at full speed); ``stop`` ends the replay early.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import tempfile
+import tomllib
+from collections import deque
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field, fields, is_dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+import anyio
+
+from whexar.bus.replay import REPLAYED_BUS, BusReplay
+from whexar.config import RobotConfig, load_config
+from whexar.errors import UsageError
+from whexar.record.encoding import LinkBytes, RecordingError
+from whexar.record.reader import Recording
+from whexar.runtime.channels import ChannelStats
+from whexar.runtime.clock import monotonic, wait_until
+from whexar.runtime.devices import DEVICES
+from whexar.runtime.messages import Message
+from whexar.runtime.wiring import EVENTS_CHANNEL
+from whexar.sensors.replay import REPLAYED_BOARD, REPLAYED_I2C, BoardReplay, I2CReplay
+from whexar.testing.harness import Harness, RunResult, run_actors
+
+if TYPE_CHECKING:
+    from whexar.record.writer import LiveSink, Recorder
+
+__all__ = [
+    "CONFIG_ATTACHMENT",
+    "EFFECTIVE_CONFIG_ATTACHMENT",
+    "FLOAT_TOLERANCE",
+    "Divergence",
+    "ReplayResult",
+    "compare",
+    "replay",
+]
+
+FLOAT_TOLERANCE: Final = 1e-9
+"""Floats agree within this, relative to the larger (and at least this absolute): a replay
+on the recording's code agrees to the last bit; this forgives a time summed in another
+order."""
+CONFIG_ATTACHMENT: Final = "config.toml"
+"""The configuration file the recorded run read, if it read one."""
+EFFECTIVE_CONFIG_ATTACHMENT: Final = "robot-config.json"
+"""Every value of the recorded run's robot configuration (defaults included), as JSON."""
+LATE_S: Final = 0.1
+"""A replay cut short by ``stop`` does not miss a recorded message stamped this little
+before ``stop``: it may have been published after it."""
+DEVICE_PARAMS: Final = {
+    "whexar.actors.bus:BusScheduler": ("port", ("faults", "emulator_fast_sync_read")),
+    "whexar.actors.sensors:SensorReader": ("port", ()),
+    "whexar.actors.imu:ImuReader": ("device", ()),
+}
+"""Actors that own a device link: the parameter that names the device, and the
+parameters that only an emulator reads (dropped for the replay)."""
+FED_ACTORS: Final = frozenset({"whexar.actors.commands:CommandSource"})
+"""Actors left out of a replay: their channels are fed from the recording."""
+REPLAY_DEVICE: Final = "replay"
+"""The name every played-back device is registered under."""
+
+
+# --------------------------------------------------------------------------- divergence
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """Where a replay first did something other than the recording."""
+
+    kind: str
+    """``message`` (a field differs), ``type``, ``missing`` (recorded, never published),
+    ``extra`` (published, never recorded) or ``link`` (bytes written to a device)."""
+    channel: str
+    """The channel (or ``links/NAME``)."""
+    t: float
+    """The recorded time (s)."""
+    what: str
+    """The message type and field path (``ServoStates.joints[3].position``), or a packet."""
+    recorded: str
+    replayed: str
+
+    def describe(self) -> str:
+        """One paragraph naming the channel, the time, the field and both values."""
+        head = {
+            "message": "differs",
+            "type": "is another message",
+            "missing": "was recorded but not published by the replay",
+            "extra": "was published by the replay but not recorded",
+            "link": "written to the device differs",
+        }[self.kind]
+        return (
+            f"diverged at t = {self.t:.6f} s on {self.channel}: {self.what} {head}\n"
+            f"  recorded: {self.recorded}\n"
+            f"  replayed: {self.replayed}"
+        )
+
+
+def _close(a: float, b: float) -> bool:
+    if a == b or (math.isnan(a) and math.isnan(b)):
+        return True
+    return abs(a - b) <= FLOAT_TOLERANCE * max(1.0, abs(a), abs(b))
+
+
+def _short(value: Any, limit: int = 400) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def compare(
+    recorded: Any, replayed: Any, path: str = "", aliases: Mapping[str, str] | None = None
+) -> tuple[str, Any, Any] | None:
+    """The first difference between two values: ``(path, recorded, replayed)``, or ``None``.
+
+    Dataclasses field by field, sequences and mappings item by item, floats within
+    :data:`FLOAT_TOLERANCE`, everything else exactly. ``aliases`` maps a played-back
+    device's name to the recorded one (``replay:sensors`` → ``/dev/ttyACM0``): a
+    replayed string naming it counts as naming the recorded device."""
+    if aliases and isinstance(replayed, str) and isinstance(recorded, str):
+        for alias, name in aliases.items():
+            replayed = replayed.replace(alias, name)
+    if type(recorded) is not type(replayed):
+        if isinstance(recorded, int | float) and isinstance(replayed, int | float):
+            return None if _close(float(recorded), float(replayed)) else (path, recorded, replayed)
+        return path, recorded, replayed
+    if isinstance(recorded, float):
+        return None if _close(recorded, replayed) else (path, recorded, replayed)
+    if is_dataclass(recorded):
+        for f in fields(recorded):
+            found = compare(
+                getattr(recorded, f.name), getattr(replayed, f.name), f"{path}.{f.name}", aliases
+            )
+            if found is not None:
+                return found
+        return None
+    if isinstance(recorded, list | tuple):
+        if len(recorded) != len(replayed):
+            return f"{path} (length)", len(recorded), len(replayed)
+        for k, (a, b) in enumerate(zip(recorded, replayed, strict=True)):
+            found = compare(a, b, f"{path}[{k}]", aliases)
+            if found is not None:
+                return found
+        return None
+    if isinstance(recorded, Mapping):
+        if recorded.keys() != replayed.keys():
+            return f"{path} (keys)", sorted(map(str, recorded)), sorted(map(str, replayed))
+        for key in recorded:
+            found = compare(recorded[key], replayed[key], f"{path}[{key!r}]", aliases)
+            if found is not None:
+                return found
+        return None
+    return None if recorded == replayed else (path, recorded, replayed)
+
+
+class _Checker:
+    """The runtime observer that compares what is published with the recording."""
+
+    def __init__(
+        self,
+        expected: Iterator[tuple[str, Message]],
+        skip: set[str],
+        start: float,
+        stop: float,
+        whole: bool,
+    ) -> None:
+        self._source = expected
+        self._pending: dict[str, deque[Message]] = {}
+        self._skip = skip
+        self._start = start
+        self._stop = stop
+        self._whole = whole
+        """The replay runs to the recording's end: what is published while stopping counts."""
+        self.now: Callable[[], float] = lambda: -math.inf
+        """The runtime clock (set once the run starts)."""
+        self.aliases: dict[str, str] = {}
+        """Played-back device → the recorded one (:func:`compare`)."""
+        self.compared = 0
+        self.divergence: Divergence | None = None
+        self.on_divergence: Callable[[], None] = lambda: None
+
+    def _next(self, channel: str) -> Message | None:
+        queue = self._pending.get(channel)
+        if queue:
+            return queue.popleft()
+        for ch, msg in self._source:
+            if ch == channel:
+                return msg
+            self._pending.setdefault(ch, deque()).append(msg)
+        return None
+
+    def _counts(self) -> bool:
+        # Before --to, by publish time: the stop that --to makes was not recorded.
+        return self._whole or self.now() < self._stop
+
+    def __call__(self, channel: str, msg: Message) -> None:
+        if self.divergence is not None or channel in self._skip or not self._counts():
+            return
+        recorded = self._next(channel)
+        if msg.t < self._start - 1e-12:
+            return
+        name = type(msg).__name__
+        if recorded is None:
+            self._diverged("extra", channel, msg.t, name, "nothing", _short(msg))
+            return
+        self.compared += 1
+        if type(recorded) is not type(msg):
+            self._diverged("type", channel, recorded.t, name, _short(recorded), _short(msg))
+            return
+        found = compare(recorded, msg, name, self.aliases)
+        if found is not None:
+            path, a, b = found
+            self._diverged("message", channel, recorded.t, path, _short(a), _short(b))
+
+    def _diverged(self, kind: str, channel: str, t: float, what: str, a: str, b: str) -> None:
+        self.divergence = Divergence(kind, channel, t, what, a, b)
+        self.on_divergence()
+
+    def _missed(self, t: float) -> bool:
+        # A message stamped just before --to may have been published after it.
+        return t >= self._start and (self._whole or t < self._stop - LATE_S)
+
+    def left_over(self) -> Divergence | None:
+        """The first recorded message (within the window) the replay did not publish."""
+        first: tuple[float, str, Message] | None = None
+        for channel, queue in self._pending.items():
+            for msg in queue:
+                if channel not in self._skip and self._missed(msg.t):
+                    if first is None or msg.t < first[0]:
+                        first = (msg.t, channel, msg)
+                    break
+        for channel, msg in self._source:
+            if first is not None and msg.t >= first[0]:
+                break
+            if channel not in self._skip and self._missed(msg.t):
+                first = (msg.t, channel, msg)
+                break
+        if first is None:
+            return None
+        t, channel, msg = first
+        return Divergence("missing", channel, t, type(msg).__name__, _short(msg), "nothing")
+
+
+# --------------------------------------------------------------------------- the replay
+
+
+@dataclass
+class ReplayResult:
+    """What a replay did."""
+
+    path: Path
+    duration_s: float
+    """Runtime seconds replayed."""
+    recorded_s: float
+    """Seconds the recording holds (readable)."""
+    wall_s: float
+    run: RunResult
+    fed: dict[str, int]
+    """Messages fed from the recording, per channel."""
+    checked: bool
+    compared: int = 0
+    """Messages compared with the recorded ones."""
+    divergence: Divergence | None = None
+    links: dict[str, str] = field(default_factory=dict)
+    """Each played-back link: what it did, in words."""
+    damage: str | None = None
+    """Where a damaged recording's readable part ends, if it does."""
+    config_changes: list[str] = field(default_factory=list)
+    """Keys of the configuration replayed with that differ from the recorded one."""
+    recording: Path | None = None
+    """Where the replay itself was recorded, if it was."""
+
+    @property
+    def realtime_factor(self) -> float:
+        """Replayed seconds per wall second."""
+        return self.duration_s / self.wall_s if self.wall_s > 0 else math.inf
+
+    @property
+    def channels(self) -> dict[str, ChannelStats]:
+        """Each channel's published and dropped counts."""
+        return self.run.stats
+
+
+def _wiring(rec: Recording) -> dict[str, Any]:
+    for name, attachment in sorted(rec.attachments.items()):
+        if name.startswith("wiring."):
+            text = attachment.data.decode("utf-8")
+            data: dict[str, Any] = (
+                json.loads(text) if name.endswith(".json") else tomllib.loads(text)
+            )
+            return data
+    raise RecordingError(
+        f"{rec.path} holds no wiring (attachment wiring.json or wiring.toml): it cannot be replayed"
+    )
+
+
+def _param_fields(class_path: str) -> set[str]:
+    module, _, name = class_path.partition(":")
+    try:
+        cls = getattr(importlib.import_module(module), name)
+        return set(cls.Params.model_fields)
+    except (ImportError, AttributeError):
+        return set()
+
+
+def config_changes(
+    recorded: Mapping[str, Any], now: Mapping[str, Any], prefix: str = ""
+) -> list[str]:
+    """Keys whose values differ between two configuration dumps: ``key: recorded → now``."""
+    out: list[str] = []
+    for key in sorted(set(recorded) | set(now)):
+        a, b = recorded.get(key, "<absent>"), now.get(key, "<absent>")
+        where = f"{prefix}{key}"
+        if isinstance(a, Mapping) and isinstance(b, Mapping):
+            out.extend(config_changes(a, b, f"{where}."))
+        elif a != b:
+            out.append(f"{where}: {a!r} → {b!r}")
+    return out
+
+
+def _config(
+    rec: Recording, override: Path | None, workdir: Path
+) -> tuple[Path | None, RobotConfig, list[str]]:
+    """The configuration file to replay with (``None``: the built-in), the configuration,
+    and how it differs from the recorded one."""
+    recorded_file = rec.attachments.get(CONFIG_ATTACHMENT)
+    if override is not None:
+        path: Path | None = override
+        cfg = load_config(override)
+    elif recorded_file is not None:
+        path = workdir / CONFIG_ATTACHMENT
+        path.write_bytes(recorded_file.data)
+        cfg = load_config(path)
+    else:
+        path, cfg = None, RobotConfig()
+    effective = rec.attachments.get(EFFECTIVE_CONFIG_ATTACHMENT)
+    if effective is None:
+        return path, cfg, []
+    changes = config_changes(json.loads(effective.data), cfg.model_dump(mode="json"))
+    if changes and override is None:
+        shown = "\n  ".join(changes[:10]) + ("\n  …" if len(changes) > 10 else "")
+        raise RecordingError(
+            f"{rec.path} was recorded with another robot configuration than this whexar's "
+            f"(recorded → now):\n  {shown}\ngive the configuration to replay with: "
+            "--config FILE"
+        )
+    return path, cfg, changes
+
+
+def _replay_graph(
+    wiring: Mapping[str, Any], config: Path | None, cfg: RobotConfig
+) -> tuple[dict[str, Any], list[str], dict[str, str], dict[str, str]]:
+    """The recorded wiring with each device link played back: the graph, the channels to
+    feed, actor name → the kind of link it owns, and played-back device → recorded one."""
+    graph = json.loads(json.dumps(wiring))  # a deep copy
+    actors = []
+    owners: dict[str, str] = {}
+    aliases: dict[str, str] = {}
+    configured = {
+        "whexar.actors.bus:BusScheduler": cfg.bus.port,
+        "whexar.actors.sensors:SensorReader": cfg.sensor_board.port,
+    }
+    for actor in graph.get("actors", []):
+        cls = actor.get("class", "")
+        if cls in FED_ACTORS:
+            continue
+        params = actor.setdefault("params", {})
+        if "config" in _param_fields(cls) or "config" in params:
+            if config is None:
+                params.pop("config", None)
+            else:
+                params["config"] = str(config)
+        if cls in DEVICE_PARAMS:
+            setting, emulator_only = DEVICE_PARAMS[cls]
+            for key in emulator_only:
+                params.pop(key, None)
+            played = f"{REPLAY_DEVICE}:{actor['name']}"
+            recorded = params.get(setting) or configured.get(cls)
+            if recorded:
+                aliases[played] = str(recorded)
+            params[setting] = played
+            owners[actor["name"]] = cls
+        actors.append(actor)
+    graph["actors"] = actors
+    published = {ch for a in actors for ch in (a.get("outputs") or {}).values()}
+    fed = [ch for ch in graph.get("channels", {}) if ch not in published and ch != EVENTS_CHANNEL]
+    return graph, fed, owners, aliases
+
+
+def _end(rec: Recording) -> float:
+    end = rec.metadata.get("run", {}).get("duration_s")
+    if end is not None and rec.damage is None:
+        return float(end)
+    last = 0
+    for record in rec.records(decode=False):
+        last = record.log_time
+    return last / 1e9
+
+
+def replay(
+    path: str | Path,
+    *,
+    start: float = 0.0,
+    stop: float | None = None,
+    speed: float | None = None,
+    check: bool = False,
+    config: str | Path | None = None,
+    record: str | Path | None = None,
+    live: LiveSink | None = None,
+    progress: Callable[[float, float], None] | None = None,
+) -> ReplayResult:
+    """Replay recording ``path`` (module docstring) and return what it did.
+
+    ``speed``: replayed seconds per wall second from ``start`` on (``None``: as fast as
+    possible). ``check``: compare every published message with the recorded one and stop
+    at the first divergence (:attr:`ReplayResult.divergence`). ``config``: the robot
+    configuration file to replay with instead of the recorded one. ``record``: an MCAP
+    file to record the replay into; ``live`` a live view fed as a run's.
+    ``progress(t, end)`` is called about every replayed second.
+    """
+    path = Path(path)
+    rec = Recording(path)
+    rec.check_compatible()
+    wiring = _wiring(rec)
+    recorded_s = _end(rec)
+    if start < 0 or (stop is not None and stop <= start):
+        raise UsageError(f"--from {start:g} --to {stop}: the window must have 0 ≤ from < to")
+    if start >= recorded_s:
+        raise UsageError(f"--from {start:g}: the recording ends at {recorded_s:.3f} s")
+    end = recorded_s if stop is None else min(stop, recorded_s)
+    whole = end >= recorded_s and rec.damage is None
+
+    links: dict[str, list[tuple[str, float, bytes]]] = {}
+    feeds: list[tuple[float, str, Message]] = []
+    with tempfile.TemporaryDirectory(prefix="whexar-replay-") as tmp:
+        cfg_path, cfg, changes = _config(rec, Path(config) if config else None, Path(tmp))
+        graph, fed, owners, aliases = _replay_graph(wiring, cfg_path, cfg)
+        fed_topics = {f"/{ch}": ch for ch in fed}
+        for r in rec.records([*(f"/links/{n}" for n in owners), *fed_topics]):
+            if isinstance(r.value, LinkBytes):
+                links.setdefault(r.topic.removeprefix("/links/"), []).append(
+                    (r.value.direction, r.value.t, r.value.data)
+                )
+            elif isinstance(r.value, Message) and r.value.t <= end:
+                feeds.append((r.value.t, fed_topics[r.topic], r.value))
+        missing = [name for name in owners if name not in links]
+        if missing:
+            raise RecordingError(
+                f"{path} holds no bytes of the device link of {', '.join(missing)} "
+                f"({', '.join(f'/links/{n}' for n in missing)}): it cannot be replayed"
+            )
+        devices = _devices(owners, links, cfg)
+        checker = None
+        if check:
+            left_out = {a["name"] for a in wiring.get("actors", [])} - {
+                a["name"] for a in graph["actors"]
+            }
+            expected = _expected(rec, graph, fed, left_out)
+            checker = _Checker(expected, set(fed), start, end, whole)
+            checker.aliases = aliases
+        recorder = None
+        if record is not None or live is not None:
+            recorder = _recorder(record, live, rec, graph)
+        observers = [o for o in (checker, recorder) if o is not None]
+
+        async def scenario(h: Harness) -> None:
+            if checker is not None:
+                checker.on_divergence = lambda: h.stop("replay diverged")
+                checker.now = h.now
+            async with anyio.create_task_group() as tg:
+                if recorder is not None:
+                    tg.start_soon(recorder.run, h.sleep)
+                if progress is not None or speed is not None:
+                    tg.start_soon(_clock, h, start, end, speed, progress)
+                for t, channel, msg in feeds:
+                    if t > h.now():
+                        await h.sleep_until(t)
+                    await h.feed(channel, msg)
+                await h.sleep(math.inf)
+
+        wall = monotonic()
+        try:
+            with _Registered(devices):
+                result = run_actors(
+                    graph,
+                    duration=end,
+                    scenario=scenario,
+                    feeds=fed,
+                    observers=observers,
+                    link_observer=None if recorder is None else recorder.link_bytes,
+                )
+        finally:
+            if recorder is not None:
+                recorder.close()
+        wall_s = monotonic() - wall
+    divergence = None
+    if checker is not None:
+        divergence = checker.divergence
+        if divergence is None:
+            divergence = checker.left_over()
+        for name, device in devices.items():
+            mismatch = _first_mismatch(name, device, start, end, whole)
+            if mismatch is not None and (divergence is None or mismatch.t < divergence.t):
+                divergence = mismatch
+    return ReplayResult(
+        path=path,
+        duration_s=min(result.end_time, end),
+        recorded_s=recorded_s,
+        wall_s=wall_s,
+        run=result,
+        fed={ch: sum(1 for f in feeds if f[1] == ch) for ch in fed},
+        checked=check,
+        compared=0 if checker is None else checker.compared,
+        divergence=divergence,
+        links={name: _describe(device) for name, device in devices.items()},
+        damage=None if rec.damage is None else rec.describe_end(),
+        config_changes=changes,
+        recording=None if recorder is None or record is None else recorder.path,
+    )
+
+
+def _expected(
+    rec: Recording, graph: Mapping[str, Any], fed: list[str], left_out: set[str]
+) -> Iterator[tuple[str, Message]]:
+    """The recorded messages to compare with, in publish order (an actor may stamp a
+    message earlier than one published before it); none from or about an actor the
+    replay leaves out (``left_out``: a command source)."""
+    channels = [ch for ch in graph.get("channels", {}) if ch not in fed] + [EVENTS_CHANNEL]
+    for r in rec.records([f"/{ch}" for ch in channels], file_order=True):
+        msg = r.value
+        if not isinstance(msg, Message):
+            continue
+        if left_out and (
+            getattr(msg, "source", None) in left_out or getattr(msg, "actor", None) in left_out
+        ):
+            continue
+        yield r.topic[1:], msg
+
+
+Device = BusReplay | BoardReplay | I2CReplay
+
+
+def _devices(
+    owners: Mapping[str, str], links: Mapping[str, list[tuple[str, float, bytes]]], cfg: RobotConfig
+) -> dict[str, Device]:
+    devices: dict[str, Device] = {}
+    for name, cls in owners.items():
+        events = links.get(name, [])
+        if cls.endswith(":BusScheduler"):
+            devices[name] = BusReplay(events, baudrate=cfg.bus.baudrate)
+        elif cls.endswith(":SensorReader"):
+            devices[name] = BoardReplay(events)
+        else:
+            devices[name] = I2CReplay(events)
+    return devices
+
+
+class _Registered:
+    """Registers each played-back device under its actor's name for the run."""
+
+    def __init__(self, devices: Mapping[str, Device]) -> None:
+        self.devices = devices
+
+    def __enter__(self) -> None:
+        for name, device in self.devices.items():
+            if isinstance(device, BusReplay):
+                DEVICES.register(REPLAYED_BUS, name, device)
+            elif isinstance(device, BoardReplay):
+                DEVICES.register(REPLAYED_BOARD, name, device)
+            else:
+                DEVICES.register(REPLAYED_I2C, name, device)
+
+    def __exit__(self, *exc: object) -> None:
+        for name, device in self.devices.items():
+            kind = (
+                REPLAYED_BUS
+                if isinstance(device, BusReplay)
+                else REPLAYED_BOARD
+                if isinstance(device, BoardReplay)
+                else REPLAYED_I2C
+            )
+            DEVICES.unregister(kind, name)
+
+
+def _first_mismatch(
+    name: str, device: Device, start: float, end: float, whole: bool
+) -> Divergence | None:
+    if isinstance(device, BusReplay):
+        port = device.port
+        m = None if port is None else port.first_mismatch
+    else:
+        m = device.first_mismatch  # type: ignore[assignment]
+    if m is None or m.t < start or (m.t >= end and not whole):
+        return None  # outside the window: after --to, the stop is not the recorded one
+    return Divergence(
+        "link", f"links/{name}", m.t, "packet", m.recorded.hex(" "), m.written.hex(" ")
+    )
+
+
+def _describe(device: Device) -> str:
+    if isinstance(device, BusReplay):
+        port = device.port
+        if port is None:
+            return f"{len(device.exchanges)} recorded packets, never opened"
+        return (
+            f"{port.next}/{len(device.exchanges)} recorded packets written, "
+            f"{port.mismatches} differing, {port.unrecorded_timeouts} waits not recorded"
+        )
+    if isinstance(device, BoardReplay):
+        return f"{len(device.incoming)} recorded chunks left, {device.mismatches} sends differing"
+    return f"{len(device.events)} recorded calls left, {device.mismatches} calls differing"
+
+
+async def _clock(
+    h: Harness,
+    start: float,
+    end: float,
+    speed: float | None,
+    progress: Callable[[float, float], None] | None,
+) -> None:
+    """Pace the replay (``speed`` from ``start`` on) and report progress every second."""
+    step = 1.0 if speed is None else min(1.0, 0.05 * speed)
+    t = 0.0
+    wall0: float | None = None
+    while t < end:
+        t = min(end, t + step)
+        await h.sleep_until(t)
+        if speed is not None and t >= start:
+            if wall0 is None:
+                wall0 = monotonic() - (t - start) / speed
+            wait_until(wall0 + (t - start) / speed)
+        if progress is not None:
+            progress(t, end)
+
+
+def _recorder(
+    record: str | Path | None, live: LiveSink | None, rec: Recording, graph: Mapping[str, Any]
+) -> Recorder:
+    import os
+
+    from whexar.record.writer import Recorder
+
+    attachments: dict[str, str | bytes] = {"wiring.json": json.dumps(graph, indent=1)}
+    for name in ("robot.urdf", CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT):
+        if name in rec.attachments:
+            attachments[name] = rec.attachments[name].data
+    recorder = Recorder(
+        record if record is not None else os.devnull,
+        metadata={"kind": "replay", "replayed": str(rec.path)},
+        attachments=attachments,
+        live=live,
+    )
+    urdf = rec.attachments.get("robot.urdf")
+    if urdf is not None:
+        recorder.robot_description(urdf.data.decode("utf-8"))
+    return recorder

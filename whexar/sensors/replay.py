@@ -1,0 +1,194 @@
+"""Recorded sensor links played back: the board's serial bytes and the IMU's I²C calls.
+
+Theory of operation
+-------------------
+A recording holds what the sensor reader's link received and sent, each chunk with
+the runtime time it happened at, and when the link was opened or went away
+(:class:`~whexar.sensors.serial_link.TappedLink`, the reader's ``_open``); and every
+call the IMU reader made on its I²C adapter, the bytes that came back, and the calls
+that failed (:class:`~whexar.sensors.lsm9ds1.TappedBus`). These play them back
+through the same edges:
+
+* :class:`BoardReplay` (port ``replay:NAME``, :data:`REPLAYED_BOARD`) opens as the
+  recording says — a recorded ``gone`` raises
+  :class:`~whexar.errors.DeviceGoneError` with the recorded reason — and its link's
+  :meth:`~ReplayLink.receive` returns each recorded chunk at its recorded time, to
+  the same frame decoder, until the recorded ``gone``. What the reader sends is
+  compared with what it sent on the recording, and otherwise dropped.
+* :class:`I2CReplay` (device ``replay:NAME``, :data:`REPLAYED_I2C`) answers each
+  call with the recorded bytes, raises the recorded ``OSError`` where the call
+  failed, and says when a call differs from the recorded one.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Final
+
+from whexar.errors import DeviceGoneError
+from whexar.runtime.clock import Clock
+from whexar.runtime.devices import DeviceKind
+
+__all__ = [
+    "REPLAYED_BOARD",
+    "REPLAYED_I2C",
+    "BoardReplay",
+    "I2CReplay",
+    "LinkMismatch",
+    "ReplayLink",
+]
+
+Event = tuple[str, float, bytes]
+"""A recorded link event: (direction, t, data)."""
+
+
+@dataclass(frozen=True, slots=True)
+class LinkMismatch:
+    """Bytes the replayed code sent that differ from the recorded ones."""
+
+    t: float
+    """The recorded time (s)."""
+    recorded: bytes
+    written: bytes
+
+
+class _Compared:
+    """Counts what was sent against what the recording says was sent."""
+
+    def __init__(self) -> None:
+        self.mismatches = 0
+        self.first_mismatch: LinkMismatch | None = None
+
+    def compare(self, expected: Event | None, written: bytes) -> None:
+        recorded = expected[2] if expected is not None else b""
+        if expected is None or recorded != written:
+            self.mismatches += 1
+            if self.first_mismatch is None:
+                t = expected[1] if expected is not None else math.inf
+                self.first_mismatch = LinkMismatch(t, recorded, written)
+
+
+class BoardReplay(_Compared):
+    """The recorded link to the sensor board, opened by the sensor reader as
+    ``port = "replay:NAME"`` once registered (:data:`REPLAYED_BOARD`)."""
+
+    def __init__(self, events: Iterable[Event]) -> None:
+        super().__init__()
+        self.incoming: deque[Event] = deque()
+        """``rx``, ``open`` and ``gone``, in recorded order."""
+        self.sent: deque[Event] = deque()
+        for event in events:
+            (self.sent if event[0] == "tx" else self.incoming).append(event)
+        self.unrecorded_opens = 0
+
+    def open(self, clock: Clock) -> ReplayLink:
+        """Open as the recording did: the next ``open``, or raise its ``gone``."""
+        incoming = self.incoming
+        while incoming and incoming[0][0] == "rx":
+            incoming.popleft()  # bytes a closed link never read (an earlier run's end)
+        if not incoming:
+            self.unrecorded_opens += 1
+            return ReplayLink(self, clock)  # past the recording: a link that stays silent
+        direction, _, data = incoming.popleft()
+        if direction == "gone":
+            raise DeviceGoneError(data.decode("utf-8", "replace"))
+        return ReplayLink(self, clock)
+
+
+class ReplayLink:
+    """A :class:`~whexar.sensors.serial_link.ByteLink` playing a :class:`BoardReplay`."""
+
+    name = "replay"
+
+    def __init__(self, replay: BoardReplay, clock: Clock) -> None:
+        self.replay = replay
+        self._clock = clock
+        self.closed = False
+
+    async def receive(self) -> bytes:
+        """The next recorded chunk at its time; the recorded ``gone`` as DeviceGoneError."""
+        incoming = self.replay.incoming
+        if self.closed or not incoming or incoming[0][0] == "open":
+            await self._clock.sleep(math.inf)  # nothing more was received on this link
+        direction, t, data = incoming.popleft()
+        await self._clock.sleep_until(t)
+        if direction == "gone":
+            raise DeviceGoneError(data.decode("utf-8", "replace"))
+        return data
+
+    async def send(self, data: bytes) -> None:
+        """Compare ``data`` with what was sent next on the recording."""
+        sent = self.replay.sent
+        self.replay.compare(sent.popleft() if sent else None, bytes(data))
+
+    async def aclose(self) -> None:
+        self.closed = True
+
+
+REPLAYED_BOARD: Final = DeviceKind[BoardReplay]("replayed sensor-board link", "replay")
+"""Opened by :class:`~whexar.actors.sensors.SensorReader` as ``port = "replay:NAME"``."""
+
+
+class I2CReplay(_Compared):
+    """The recorded I²C calls of the IMU reader, opened as ``device = "replay:NAME"``
+    once registered (:data:`REPLAYED_I2C`). The calls of ``smbus2.SMBus`` the driver
+    makes, answered from the recording."""
+
+    def __init__(self, events: Iterable[Event]) -> None:
+        super().__init__()
+        self.events: deque[Event] = deque(events)
+        self.unrecorded_calls = 0
+
+    def opened(self) -> I2CReplay:
+        """Open as the recording did: the next ``open``, or raise its ``gone``."""
+        events = self.events
+        while events and events[0][0] not in ("open", "gone"):
+            events.popleft()  # calls of a bus the recording closed before they were answered
+        if events:
+            direction, _, data = events.popleft()
+            if direction == "gone":
+                raise DeviceGoneError(data.decode("utf-8", "replace"))
+        return self
+
+    def _call(self, out: bytes) -> bytes | None:
+        """Take the recorded call ``out`` and what came back; raise its recorded error."""
+        events = self.events
+        while events and events[0][0] in ("open", "gone"):
+            events.popleft()  # the reader reopened without our knowing: carry on
+        if not events:
+            self.unrecorded_calls += 1
+            raise OSError(121, "Remote I/O error (past the recording's end)")
+        self.compare(events.popleft(), out)
+        if events and events[0][0] == "error":
+            code, _, text = events.popleft()[2].decode("utf-8", "replace").partition(":")
+            raise OSError(int(code) if code.lstrip("-").isdigit() else 5, text)
+        if events and events[0][0] == "rx":
+            return events.popleft()[2]
+        return None
+
+    def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
+        got = self._call(bytes((i2c_addr, register)))
+        if not got:
+            self.unrecorded_calls += 1
+            raise OSError(121, "Remote I/O error (no recorded answer)")
+        return got[0]
+
+    def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None:
+        self._call(bytes((i2c_addr, register, value)))
+
+    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]:
+        got = self._call(bytes((i2c_addr, register)))
+        if got is None:
+            self.unrecorded_calls += 1
+            raise OSError(121, "Remote I/O error (no recorded answer)")
+        return list(got)
+
+    def close(self) -> None:
+        """Nothing to close: the recording stays for the next open."""
+
+
+REPLAYED_I2C: Final = DeviceKind[I2CReplay]("replayed I²C bus", "replay")
+"""Opened by :class:`~whexar.actors.imu.ImuReader` as ``device = "replay:NAME"``."""
