@@ -51,7 +51,8 @@ def test_recording_changes_nothing_and_holds_every_message_and_byte(tmp_path: Pa
     assert topics["/links/sensors"] > 0
     # The IMU's I²C transactions: address and register out, the registers' bytes back.
     imu = [r.value for r in records if r.topic == "/links/imu"]
-    assert {b.direction for b in imu} == {"tx", "rx"}
+    assert {b.direction for b in imu} == {"open", "tx", "rx"}
+    assert imu[0].direction == "open"  # a replay opens the bus as the run did
     assert all(b.data[0] == 0x6B for b in imu if b.direction == "tx")  # the LSM9DS1's A/G
     # Foxglove's views: the joints, the body's pose, the events.
     assert topics["/joint_states"] == len(states)

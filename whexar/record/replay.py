@@ -87,7 +87,8 @@ EFFECTIVE_CONFIG_ATTACHMENT: Final = "robot-config.json"
 """Every value of the recorded run's robot configuration (defaults included), as JSON."""
 LATE_S: Final = 0.1
 """A replay cut short by ``stop`` does not miss a recorded message stamped this little
-before ``stop``: it may have been published after it."""
+before ``stop``: it may have been published after it. Where a damaged recording ends,
+this much before its end is not compared: the cut chunk held part of it."""
 DEVICE_PARAMS: Final = {
     "whexar.actors.bus:BusScheduler": ("port", ("faults", "emulator_fast_sync_read")),
     "whexar.actors.sensors:SensorReader": ("port", ()),
@@ -426,14 +427,20 @@ def _replay_graph(
     return graph, fed, owners, aliases
 
 
-def _end(rec: Recording) -> float:
-    end = rec.metadata.get("run", {}).get("duration_s")
-    if end is not None and rec.damage is None:
-        return float(end)
+def _end(rec: Recording) -> tuple[float, bool]:
+    """How far the recording goes (s), and whether that is the run's end (its stop
+    recorded too): the run's duration, or where a damaged file's readable part ends."""
+    meta = rec.metadata.get("run", {}).get("duration_s")
+    duration = None if meta is None else float(meta)
+    if duration is not None and rec.damage is None:
+        return duration, True
     last = 0
     for record in rec.records(decode=False):
-        last = record.log_time
-    return last / 1e9
+        last = max(last, record.log_time)
+    readable = last / 1e9
+    if duration is None:
+        return readable, rec.damage is None
+    return min(duration, readable), readable >= duration
 
 
 def replay(
@@ -461,13 +468,13 @@ def replay(
     rec = Recording(path)
     rec.check_compatible()
     wiring = _wiring(rec)
-    recorded_s = _end(rec)
+    recorded_s, to_the_end = _end(rec)
     if start < 0 or (stop is not None and stop <= start):
         raise UsageError(f"--from {start:g} --to {stop}: the window must have 0 ≤ from < to")
     if start >= recorded_s:
         raise UsageError(f"--from {start:g}: the recording ends at {recorded_s:.3f} s")
     end = recorded_s if stop is None else min(stop, recorded_s)
-    whole = end >= recorded_s and rec.damage is None
+    whole = end >= recorded_s and to_the_end
 
     links: dict[str, list[tuple[str, float, bytes]]] = {}
     feeds: list[tuple[float, str, Message]] = []
@@ -495,7 +502,9 @@ def replay(
                 a["name"] for a in graph["actors"]
             }
             expected = _expected(rec, graph, fed, left_out)
-            checker = _Checker(expected, set(fed), start, end, whole)
+            # Where a damaged file is cut, the last instants are only partly there.
+            cut = not to_the_end and end >= recorded_s
+            checker = _Checker(expected, set(fed), start, end - LATE_S if cut else end, whole)
             checker.aliases = aliases
         recorder = None
         if record is not None or live is not None:

@@ -18,6 +18,7 @@ and the coordinator stands the robot up from there.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import math
@@ -314,7 +315,10 @@ def simulate(
         t = 0.0
         while True:
             while k < len(pending) and pending[k][0] <= t + 1e-9:
-                await h.feed("commands", pending[k][1])
+                cmd = pending[k][1]
+                now = h.now()
+                # Stamped when it is published: a replay feeds it again at that time.
+                await h.feed("commands", cmd if cmd.t == now else dataclasses.replace(cmd, t=now))
                 k += 1
             while j < len(timeline) and timeline[j][0] <= t + 1e-9:
                 fault(timeline[j][1], ending=timeline[j][2])

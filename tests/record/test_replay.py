@@ -1,0 +1,177 @@
+"""Replay: a recorded simulated run played back through the same actors agrees with the
+recording message for message; a changed threshold is found and named."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from whexar.cli import main
+from whexar.config import RobotConfig
+from whexar.record import replay as replay_module
+from whexar.record.reader import Recording
+from whexar.record.replay import Divergence, compare, replay
+from whexar.record.writer import Recorder
+from whexar.sim.run import simulate
+from whexar.testing.walk import command
+
+ROOT = Path(__file__).resolve().parents[2]
+COMMANDS = [(0.0, command(gait="tripod")), (2.5, command(mode="ride", vx_m_s=0.1))]
+DURATION_S = 3.0
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Three seconds of the simulated robot: standing up, then riding off."""
+    path = tmp_path_factory.mktemp("replay") / "run.mcap"
+    simulate(commands=COMMANDS, duration=DURATION_S, record=path)
+    return path
+
+
+def _config(tmp_path: Path, old: str, new: str) -> Path:
+    """The shipped configuration with one line changed."""
+    text = (ROOT / "config" / "whexar.toml").read_text()
+    assert old in text
+    path = tmp_path / "changed.toml"
+    path.write_text(text.replace(old, new, 1))
+    return path
+
+
+def _json(capsys: pytest.CaptureFixture[str]) -> dict[str, object]:
+    out = capsys.readouterr().out
+    return dict(json.loads(out.strip().splitlines()[-1]))
+
+
+def test_a_replay_agrees_with_its_recording(
+    recorded: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["replay", str(recorded), "--check", "--json"]) == 0
+    summary = _json(capsys)
+    assert summary["divergence"] is None
+    assert summary["replayed_s"] == DURATION_S
+    compared = summary["compared"]
+    assert isinstance(compared, int)
+    # Every message the recording holds but the fed commands, the runtime's events too.
+    published = sum(
+        1
+        for r in Recording(recorded).records()
+        if r.topic not in ("/commands", "/joint_states", "/tf", "/log", "/robot_description")
+        and not r.topic.startswith("/links/")
+    )
+    assert compared == published
+    assert summary["fed"] == {"commands": 2}
+    links = summary["links"]
+    assert isinstance(links, dict)
+    assert re.match(r"(\d+)/\1 recorded packets written, 0 differing, 0 waits", links["bus"])
+
+
+def test_a_changed_threshold_is_found_and_named(
+    recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The force sensors' contact threshold (6.7.3): a foot touches sooner.
+    changed = _config(tmp_path, "contact_on_counts = 200", "contact_on_counts = 150")
+    assert main(["replay", str(recorded), "--check", "--config", str(changed)]) == 1
+    out = capsys.readouterr().out
+    assert "config        fsr.contact_on_counts: 200 → 150" in out
+    found = re.search(r"diverged at t = ([0-9.]+) s on (\S+): (\S+) differs", out)
+    assert found is not None, out
+    t, channel, what = float(found[1]), found[2], found[3]
+    assert 0 < t < DURATION_S
+    assert channel == "loads"
+    assert what.startswith("LegLoads.contacts[")
+    assert "recorded: False" in out
+    assert "replayed: True" in out
+
+
+def test_the_recorded_configuration_must_be_this_versions(
+    recorded: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # As if this whexar's built-in robot had another IMU tolerance than the recording's.
+    data = RobotConfig().model_dump()
+    data["imu"]["gravity_tolerance_g"] = 0.3
+    monkeypatch.setattr(replay_module, "RobotConfig", lambda: RobotConfig.model_validate(data))
+    assert main(["replay", str(recorded)]) == 2
+    err = capsys.readouterr().err
+    assert "another robot configuration" in err
+    assert "imu.gravity_tolerance_g: 0.2 → 0.3" in err
+    assert "--config FILE" in err
+
+
+def test_a_window_checks_what_is_in_it(recorded: Path) -> None:
+    whole = replay(recorded, check=True)
+    window = replay(recorded, check=True, start=1.0, stop=2.0)
+    assert whole.divergence is None
+    assert window.divergence is None, window.divergence and window.divergence.describe()
+    assert window.duration_s == 2.0
+    assert 0 < window.compared < whole.compared
+    ticks: list[float] = []
+    replay(recorded, stop=1.5, progress=lambda t, end: ticks.append(t))
+    assert ticks == sorted(ticks)
+    assert ticks[-1] == 1.5
+
+
+def test_a_cut_recording_replays_up_to_where_it_ends(recorded: Path, tmp_path: Path) -> None:
+    cut = tmp_path / "cut.mcap"
+    data = recorded.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    result = replay(cut, check=True)
+    assert result.damage is not None
+    assert "ends" in result.damage or "footer" in result.damage
+    assert result.divergence is None, result.divergence and result.divergence.describe()
+    assert 0 < result.duration_s < DURATION_S
+    assert result.compared > 0
+
+
+def test_a_run_of_a_wiring_file_replays_without_its_command_source(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "walk.mcap"
+    graph = ROOT / "config" / "graphs" / "walk.toml"
+    script = ROOT / "config" / "commands" / "tour.jsonl"
+    args = ["run", str(graph), "--virtual", "--duration", "3", "--quiet", "--record", str(log)]
+    assert main([*args, "--commands", str(script)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(log), "--check", "--json"]) == 0
+    summary = _json(capsys)
+    assert summary["divergence"] is None
+    fed = summary["fed"]
+    assert isinstance(fed, dict)
+    assert fed["commands"] >= 1  # what the script said, fed at its times
+
+
+def test_what_cannot_be_replayed_says_why(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bare = tmp_path / "bare.mcap"
+    Recorder(bare).close()
+    assert main(["replay", str(bare)]) == 2
+    assert "holds no wiring" in capsys.readouterr().err
+    assert main(["replay", str(tmp_path / "missing.mcap")]) == 2
+
+
+def test_the_comparison_names_the_field() -> None:
+    from whexar.actors.messages import BodyTilt
+
+    def tilt(roll: float, pitch: float) -> BodyTilt:
+        return BodyTilt(
+            t=1.0,
+            source="imu",
+            seq=3,
+            sensor="imu",
+            roll_rad=roll,
+            pitch_rad=pitch,
+            accel_g=(0.0, 0.0, 1.0),
+        )
+
+    assert compare(tilt(0.1, 0.2), tilt(0.1 + 1e-12, 0.2)) is None  # within the tolerance
+    assert compare(tilt(0.1, 0.2), tilt(0.1, 0.25), "BodyTilt") == ("BodyTilt.pitch_rad", 0.2, 0.25)
+    assert compare(["replay:bus x"], ["emulator:sim x"]) is not None
+    assert (
+        compare(["emulator:sim x"], ["replay:bus x"], aliases={"replay:bus": "emulator:sim"})
+        is None
+    )
+    text = Divergence("message", "tilt", 1.0, "BodyTilt.pitch", "0.2", "0.25").describe()
+    assert text.startswith("diverged at t = 1.000000 s on tilt: BodyTilt.pitch differs")
