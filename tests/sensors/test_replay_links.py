@@ -89,12 +89,12 @@ def test_i2c_calls_get_the_recorded_bytes_and_errors() -> None:
     assert opened.read_byte_data(0x6B, 0x0F) == 0x68
     opened.write_byte_data(0x6B, 0x10, 0x60)
     assert opened.read_i2c_block_data(0x6B, 0x28, 6) == [0, 1, 2, 3, 4, 5]
-    with pytest.raises(OSError) as caught:
+    with pytest.raises(OSError, match="Remote I/O error") as caught:
         opened.read_i2c_block_data(0x6B, 0x28, 6)
     assert caught.value.errno == errno.EREMOTEIO
     assert caught.value.strerror == "Remote I/O error"
     assert bus.mismatches == 0
-    with pytest.raises(OSError):  # past the recording: nothing answers
+    with pytest.raises(OSError, match="past the recording"):  # nothing answers
         opened.read_byte_data(0x6B, 0x0F)
     assert bus.unrecorded_calls == 1
 
