@@ -3,6 +3,7 @@ every channel, Foxglove's views beside them, and its memory bounded."""
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -17,7 +18,7 @@ from whexar.actors.messages import ServoStates
 from whexar.record.encoding import LinkBytes
 from whexar.record.foxglove import URDF_JOINT_NAMES, event_level
 from whexar.record.reader import Recording
-from whexar.record.writer import Recorder
+from whexar.record.writer import JOINT_STATES_PERIOD_S, Recorder
 from whexar.runtime.messages import Event, Heartbeat, Message
 from whexar.runtime.wiring import EVENTS_CHANNEL
 
@@ -100,7 +101,16 @@ def test_foxglove_views_joint_states_log_and_transforms(recorded_run: RecordedRu
     records = list(Recording(recorded_run.path).records())
     states = [r for r in records if r.schema == "ServoStates"]
     views = [r for r in records if r.topic == "/joint_states"]
-    assert len(views) == len(states)
+    # At most every JOINT_STATES_PERIOD_S of log time, each from the servo state of its time.
+    assert views
+    assert views[0].log_time == states[0].log_time
+    gaps = [b.log_time - a.log_time for a, b in itertools.pairwise(views)]
+    assert min(gaps) >= JOINT_STATES_PERIOD_S * 1e9 - 1
+    assert {v.log_time for v in views} <= {s.log_time for s in states}
+    # Not thinned more than needed: the next servo state after each period is written.
+    state_gap = max(b.log_time - a.log_time for a, b in itertools.pairwise(states))
+    assert max(gaps) < JOINT_STATES_PERIOD_S * 1e9 + state_gap
+    assert states[-1].log_time - views[-1].log_time < JOINT_STATES_PERIOD_S * 1e9 + state_gap
     first, view = states[0].value, views[0].value
     assert isinstance(first, ServoStates)
     names = [URDF_JOINT_NAMES[7 * j.leg + j.joint] for j in first.joints]

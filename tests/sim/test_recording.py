@@ -55,6 +55,7 @@ def test_recording_changes_nothing_and_holds_every_message_and_byte(tmp_path: Pa
     assert imu[0].direction == "open"  # a replay opens the bus as the run did
     assert all(b.data[0] == 0x6B for b in imu if b.direction == "tx")  # the LSM9DS1's A/G
     # Foxglove's views: the joints, the body's pose, the events.
-    assert topics["/joint_states"] == len(states)
+    # The 3D view's joints at about 27 Hz, not the servo states' 110 Hz.
+    assert len(states) / 5 <= topics["/joint_states"] <= len(states) / 3
     assert topics["/tf"] >= 3.0 / 0.05 - 2
     assert topics["/log"] == len(recorded.events)

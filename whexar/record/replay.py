@@ -484,9 +484,11 @@ def replay(
         fed_topics = {f"/{ch}": ch for ch in fed}
         for r in rec.records([*(f"/links/{n}" for n in owners), *fed_topics]):
             if isinstance(r.value, LinkBytes):
-                links.setdefault(r.topic.removeprefix("/links/"), []).append(
-                    (r.value.direction, r.value.t, r.value.data)
-                )
+                events = links.setdefault(r.topic.removeprefix("/links/"), [])
+                # Ended early, the replay stops its own way: past the end (and the cycle
+                # in flight at it) nothing answers.
+                if whole or r.value.t <= end + LATE_S:
+                    events.append((r.value.direction, r.value.t, r.value.data))
             elif isinstance(r.value, Message) and r.value.t <= end:
                 feeds.append((r.value.t, fed_topics[r.topic], r.value))
         missing = [name for name in owners if name not in links]

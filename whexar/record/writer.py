@@ -29,30 +29,34 @@ What a recording holds
 * ``/links/{link}``: the raw bytes of a device link (``whexar.LinkBytes``);
 * ``/joint_states``, ``/log``, ``/tf``: Foxglove's views (:mod:`whexar.record.foxglove`).
 
-Costs and defaults (measured here: Python 3.11, 2 cores, mcap 1.6, an idle machine)
-------------------------------------------------------------------------------------
+Costs and defaults (measured here: Python 3.11, 2 cores, msgspec 0.23, zstandard 0.25)
+---------------------------------------------------------------------------------------
 * handing over (``__call__``, :meth:`~Recorder.link_bytes`): 0.2 µs;
-* writing a :class:`~whexar.actors.messages.ServoStates` of 42 joints with its
-  ``foxglove.JointStates``: 180 µs (86 µs its JSON, 69 µs the joint states); a small
-  message 6 µs (2 µs its JSON, most of the rest ``mcap.writer.Writer.add_message``); a
-  chunk of link bytes 6.5 µs. Link bytes of one link, direction and time are merged
-  into one record (a sync read's 42 status packets: 8× fewer records);
-* the walking graph (``config/graphs/walk.toml``) costs about 26 ms of CPU per second
-  of robot time to record, against about 92 ms for the runtime itself: far above the
-  5 % the recording issue asks for. Two thirds of it is the servo states' JSON and
-  their joint states: a binary encoding of ``ServoStates`` is the lever;
-* ``compression="zstd"`` (default): compressing a 64 KiB chunk takes 0.07 ms (lz4:
-  0.05 ms), and the walking graph's file grows by 4.0 MB per minute (lz4: 6.0). Closing
-  a chunk costs more than compressing it: mcap's message indexes, built in Python,
-  0.76 ms for 64 KiB of small messages (0.30 without them, but Foxglove's indexed
-  reader needs them), so chunks are 32 KiB. Written every 10 ms, at most
-  :data:`WRITE_BUDGET_S` at a time, the writes between cycles of the course took
-  0.62–0.64 ms at the 99th percentile (``whexar bench record``). The notes' 1.5–6 ms
-  stalls of Zstd were 1 MiB chunks;
-* ``chunk_size=32 KiB``, ``flush_period_s=0.5``: after SIGKILL the file reads up to its
-  last flush, so at most one flush period plus the time since the last
-  :meth:`~Recorder.write_pending` is lost (the notes: about 1 s with 1 MiB chunks and
-  no flush). The tests kill a recording process just before a flush and find its last
+* the file is written by :class:`_McapFile`, not ``mcap.writer.Writer``: that one costs
+  about 4 µs a message in Python and builds its message indexes record by record (0.76
+  ms to close 64 KiB of small messages); here a message is one ``struct`` pack and two
+  appends, a chunk's indexes one ``array`` each;
+* JSON by msgspec (:func:`whexar.record.encoding.dumps`): a small message 0.7–1.9 µs
+  (was 3–9 µs), a :class:`~whexar.actors.messages.ServoStates` of 24 joints 12 µs (was
+  46 µs); ``/joint_states`` at most every :data:`JOINT_STATES_PERIOD_S` (27 Hz);
+* the walking graph's first 20 s of course (2,300 records per simulated second, 0.94 MB
+  of JSON) cost 13.6 ms of CPU per simulated second to write, measured offline from a
+  captured run (was 38 ms), against about 175 ms for the runtime and the physics:
+  ``whexar bench record`` measured 15–16 % (was 35–40 %), still above the 5 % the issue
+  asks. Where it goes: compressing 0.94 MB/s of JSON (zstd 1.8 ms/s, lz4 0.95 but 60 %
+  larger), the JSON itself (about 3 ms/s), and per-record Python work. The lever left is
+  a binary encoding (CDR or protobuf) of the high-rate types (``LegState`` 650/s,
+  ``JointGoals`` 380/s, ``ServoStates`` 110/s): less to encode and less to compress;
+* ``compression="zstd"`` (default): 215 kB per simulated second, 37 kB of it message
+  indexes (16 bytes a message, uncompressed as MCAP wants them); lz4: about 310 kB;
+* ``chunk_size=32 KiB``: a chunk's close (compression, CRC, indexes) is the longest part
+  of a write, about 0.3 ms; written every 10 ms, at most :data:`WRITE_BUDGET_S` at a
+  time, the writes between cycles took about 0.6 ms at the 99th percentile; the
+  longest (2–8 ms) were the recorder's thread preempted on a busy machine, or a garbage
+  collection (up to 90 ms for a full one with a simulation's log in memory);
+* ``flush_period_s=0.5``: after SIGKILL the file reads up to its last flush, so at most
+  one flush period plus the time since the last :meth:`~Recorder.write_pending` is
+  lost. The tests kill a recording process just before a flush and find its last
   record 0.499 s before the kill.
 """
 
@@ -61,6 +65,10 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import struct
+import sys
+import zlib
+from array import array
 from collections import deque
 from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -68,7 +76,24 @@ from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Final, Protocol
 
-from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+import lz4.frame  # type: ignore[import-untyped]  # no type hints
+import zstandard
+from mcap.data_stream import RecordBuilder
+from mcap.opcode import Opcode
+from mcap.records import (
+    Attachment,
+    AttachmentIndex,
+    Channel,
+    ChunkIndex,
+    DataEnd,
+    Header,
+    Metadata,
+    MetadataIndex,
+    Schema,
+    Statistics,
+    SummaryOffset,
+)
+from mcap.writer import LIBRARY_IDENTIFIER
 
 from whexar import __version__
 from whexar.actors.messages import ServoStates
@@ -97,6 +122,10 @@ WRITE_BUDGET_S: Final = 0.0003
 control cycle by 1 ms at most, and one entry (a servo state and its joint-state view)
 or a chunk's close can take 0.3 ms past the budget; what is left is written after the
 actors have had their turn."""
+JOINT_STATES_PERIOD_S: Final = 1 / 30
+"""``/joint_states`` are written at most this often (log time): about 27 Hz from servo
+states at 109 Hz, plenty for Foxglove's 3D view; every servo state is recorded whole."""
+_JOINT_STATES_PERIOD_NS: Final = round(JOINT_STATES_PERIOD_S * 1e9)
 FORMAT: Final = "whexar-mcap/1"
 ROBOT_DESCRIPTION: Final = "/robot_description"
 """The topic of the robot's URDF (:meth:`Recorder.robot_description`)."""
@@ -109,11 +138,7 @@ _DESCRIPTION_SCHEMA: Final = {
 }
 """The layout described in this module's docstring (metadata ``whexar``, key ``format``)."""
 
-_COMPRESSION = {
-    "lz4": CompressionType.LZ4,
-    "zstd": CompressionType.ZSTD,
-    "none": CompressionType.NONE,
-}
+_COMPRESSION: Final = ("zstd", "lz4", "none")
 _MEDIA_TYPES = {
     ".toml": "application/toml",
     ".json": "application/json",
@@ -121,6 +146,18 @@ _MEDIA_TYPES = {
     ".xml": "application/xml",
     ".yaml": "application/yaml",
 }
+
+# MCAP records (https://mcap.dev/spec): opcode (uint8) and length (uint64), then fields.
+MAGIC: Final = b"\x89MCAP0\r\n"
+_OP_FOOTER, _OP_MESSAGE, _OP_CHUNK, _OP_MESSAGE_INDEX = 0x02, 0x05, 0x06, 0x07
+_MESSAGE_HEAD: Final = struct.Struct("<BQHIQQ")  # channel id, sequence, log, publish time
+_CHUNK_HEAD: Final = struct.Struct("<BQQQQI")  # start, end, uncompressed size, CRC
+_INDEX_HEAD: Final = struct.Struct("<BQHI")  # channel id, byte length of the pairs
+_FOOTER_HEAD: Final = struct.Struct("<BQQQ")  # summary start, summary offset start
+_STRING_LENGTH: Final = struct.Struct("<I")
+_LENGTH: Final = struct.Struct("<Q")
+_CRC: Final = struct.Struct("<I")
+_BIG_ENDIAN: Final = sys.byteorder == "big"
 
 # Kinds of pending entries: (kind, …) tuples, made in O(1) by the hand-over methods.
 _MESSAGE, _LINK, _TRANSFORM = 0, 1, 2
@@ -212,15 +249,9 @@ class Recorder:
             self._file: IO[bytes] = open(self.path, "wb")  # noqa: SIM115  (closed by close())
         except OSError as exc:
             raise RecordingError(f"cannot record to {self.path}: {exc.strerror or exc}") from None
-        # Message indexes stay: Foxglove's indexed reader finds a chunk's messages through
-        # them. mcap builds them in Python as a chunk closes, the longest part of a write
-        # (0.76 ms for a 64 KiB chunk against 0.30 without, measured here): hence smaller
-        # chunks than mcap's default.
-        self._writer = Writer(
-            self._file, chunk_size=chunk_size, compression=_COMPRESSION[compression]
-        )
-        self._writer.start(profile="", library=f"whexar {__version__}; {LIBRARY_IDENTIFIER}")
-        self._writer.add_metadata(
+        self._mcap = _McapFile(self._file, chunk_size, compression)
+        self._mcap.start(library=f"whexar {__version__}; {LIBRARY_IDENTIFIER}")
+        self._mcap.metadata(
             "whexar",
             {
                 "version": __version__,
@@ -233,7 +264,7 @@ class Recorder:
             },
         )
         if metadata:
-            self._writer.add_metadata("run", {str(k): str(v) for k, v in metadata.items()})
+            self._mcap.metadata("run", {str(k): str(v) for k, v in metadata.items()})
         for name, content in (attachments or {}).items():
             if isinstance(content, str):
                 data = content.encode("utf-8")
@@ -241,9 +272,7 @@ class Recorder:
             else:
                 data = bytes(content)
                 media = _MEDIA_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
-            self._writer.add_attachment(
-                create_time=0, log_time=0, name=name, media_type=media, data=data
-            )
+            self._mcap.attachment(name, media, data)
         self._file.flush()
 
         # Compile the codec of every registered type now (well under 1 ms each), so that
@@ -259,14 +288,13 @@ class Recorder:
         self._routes: dict[tuple[str, type], tuple[int, MessageCodec[Any]]] = {}
         self._topics: dict[str, int] = {}
         self._failed_types: set[tuple[str, type]] = set()
-        self._seq = 0
-        self._messages = self._links = self._records = 0
+        self._messages = self._links = 0
         self._dropped = self._dropped_logged = self._errors = 0
         self._max_pending = 0
         self._write_s = 0.0
         self._flushes = 0
         self._last_flush = monotonic()
-        self._last_ns = 1
+        self._next_joint_states = 0
         self._closed = False
         self._broken: str | None = None
 
@@ -350,8 +378,18 @@ class Recorder:
                     # Bytes received on one link at one time are one record: a sync read
                     # arrives as a status packet per servo, stamped alike (8× fewer
                     # records). Sent packets stay apart: a replay matches them one by one.
-                    while pending and pending[0][:4] == entry[:4] and entry[2] == "rx":
-                        data += pending.popleft()[4]
+                    if entry[2] == "rx":
+                        link, t = entry[1], entry[3]
+                        while pending:
+                            after = pending[0]
+                            if (
+                                after[0] != _LINK
+                                or after[3] != t
+                                or after[2] != "rx"
+                                or after[1] != link
+                            ):
+                                break
+                            data += pending.popleft()[4]
                     self._write_link(entry[1], entry[2], entry[3], data)
                 else:
                     self._write_transform(*entry[1:])
@@ -360,7 +398,7 @@ class Recorder:
                     break
             now = monotonic()
             if now - self._last_flush >= self.flush_period_s:
-                self._writer.flush()  # type: ignore[no-untyped-call]  # mcap: no annotations
+                self._mcap.flush()
                 self._last_flush = now
                 self._flushes += 1
         except OSError as exc:
@@ -397,8 +435,9 @@ class Recorder:
             return
         self._add(channel_id, ns, data)
         self._messages += 1
-        if cls is ServoStates and self._joint_states:
+        if cls is ServoStates and self._joint_states and ns >= self._next_joint_states:
             assert isinstance(msg, ServoStates)
+            self._next_joint_states = ns + _JOINT_STATES_PERIOD_NS
             self._add(self._topic("/joint_states"), ns, foxglove.joint_states(msg, ns))
         elif self._event_log and isinstance(msg, Event):
             name = cls.__name__
@@ -429,27 +468,22 @@ class Recorder:
 
     def _channel(self, topic: str, schema_id: int, metadata: dict[str, str]) -> int:
         """Register an MCAP channel, and the same channel on the live view if there is one."""
-        channel_id: int = self._writer.register_channel(
-            topic, MESSAGE_ENCODING, schema_id, metadata
-        )
+        channel_id = self._mcap.channel(topic, MESSAGE_ENCODING, schema_id, metadata)
         if self._live is not None:
             name, schema = self._schema_texts[schema_id]
             self._live.add_channel(channel_id, topic, name, schema)
         return channel_id
 
     def _add(self, channel_id: int, ns: int, data: bytes) -> None:
-        self._seq = (self._seq + 1) & 0xFFFFFFFF  # MCAP's sequence is a uint32
-        self._writer.add_message(channel_id, ns, data, ns, self._seq)
+        self._mcap.message(channel_id, ns, data)
         if self._live is not None:
             self._live.log(channel_id, ns, data)
-        self._records += 1
-        self._last_ns = ns
 
     def _schema(self, name: str, schema: Mapping[str, Any] | bytes) -> int:
         known = self._schemas.get(name)
         if known is None:
             data = schema if isinstance(schema, bytes) else json.dumps(schema).encode()
-            known = self._writer.register_schema(name, SCHEMA_ENCODING, data)
+            known = self._mcap.schema(name, SCHEMA_ENCODING, data)
             self._schemas[name] = known
             self._schema_texts[known] = (name, data)
         return known
@@ -506,7 +540,7 @@ class Recorder:
             f"recorder: {count} entries dropped (the pending buffer of {self.max_pending} "
             "was full: write_pending() was not called often enough)"
         )
-        ns = self._last_ns
+        ns = self._mcap.last_ns
         self._add(self._topic("/log"), ns, foxglove.log_entry(ns, 4, text, "recorder"))
 
     def _break(self, exc: OSError) -> None:
@@ -528,7 +562,7 @@ class Recorder:
         return RecorderStats(
             messages=self._messages,
             link_chunks=self._links,
-            records=self._records,
+            records=self._mcap.records,
             file_bytes=size,
             dropped=self._dropped,
             errors=self._errors,
@@ -560,7 +594,8 @@ class Recorder:
                 if self._dropped > self._dropped_logged:
                     self._log_dropped()
                 stats = self.stats
-                self._writer.add_metadata(
+                self._mcap.close_chunk()  # the statistics come after the last message
+                self._mcap.metadata(
                     "whexar.end",
                     {
                         "messages": str(stats.messages),
@@ -572,7 +607,7 @@ class Recorder:
                         "write_s": f"{stats.write_s + monotonic() - start:.3f}",
                     },
                 )
-                self._writer.finish()  # type: ignore[no-untyped-call]
+                self._mcap.finish()
                 self._file.close()
             except OSError as exc:
                 self._break(exc)
@@ -591,6 +626,252 @@ class Recorder:
         tb: TracebackType | None,
     ) -> None:
         self.close()
+
+
+# --------------------------------------------------------------------------- the file
+
+
+class _McapFile:
+    """A chunked, indexed MCAP file, written with a cheap path for messages.
+
+    ``mcap.writer.Writer`` costs about 4 µs a message in Python and builds its message
+    indexes record by record as a chunk closes (0.76 ms for 64 KiB of small messages):
+    most of what recording cost. Here a message is one ``struct`` pack and two
+    ``bytearray`` appends, and a channel's message index is its (log time, offset) list
+    packed at once as a chunk closes. The layout follows the MCAP specification
+    (https://mcap.dev/spec, "Records"): magic, Header, Metadata and Attachments, then
+    Schema and Channel records (top level, each before the first chunk that uses it) and
+    Chunks, each followed by one Message Index per channel it holds; at the end Data End,
+    the summary (Schemas, Channels, Statistics, Chunk, Attachment and Metadata Indexes,
+    Summary Offsets), Footer and magic. The records written once (all but Message, Chunk
+    and Message Index) are ``mcap.records``' own.
+    """
+
+    def __init__(self, stream: IO[bytes], chunk_size: int, compression: str) -> None:
+        self._stream = stream
+        self._offset = 0
+        """Bytes written to ``stream`` so far (no ``tell()``: a system call)."""
+        self._chunk_size = chunk_size
+        self._compression = "" if compression == "none" else compression
+        self._compression_field = _STRING_LENGTH.pack(len(self._compression)) + (
+            self._compression.encode()
+        )
+        if compression == "zstd":
+            self._compress: Callable[[bytes], bytes] = zstandard.ZstdCompressor().compress
+        elif compression == "lz4":
+            self._compress = lz4.frame.compress
+        else:
+            self._compress = bytes
+        self._builder = RecordBuilder()
+        self._chunk = bytearray()
+        """The records of the current chunk, uncompressed: messages only."""
+        self._index: list[list[int]] = [[]]
+        """By channel id: log time, offset, log time, offset … of the current chunk."""
+        self._counts: list[int] = [0]
+        """Messages written, by channel id (those in the current chunk not yet)."""
+        self._schemas: list[Schema] = []
+        self._channels: list[Channel] = []
+        self._chunk_indexes: list[ChunkIndex] = []
+        self._attachment_indexes: list[AttachmentIndex] = []
+        self._metadata_indexes: list[MetadataIndex] = []
+        self._start_ns: int | None = None
+        self._end_ns = 0
+        self.sequence = 0
+        """The last message's sequence number (MCAP's is a uint32: it wraps)."""
+        self.last_ns = 1
+        """The last message's log time."""
+
+    @property
+    def records(self) -> int:
+        """Messages written so far."""
+        return sum(self._counts) + sum(len(index) for index in self._index) // 2
+
+    # ------------------------------------------------------------------ once-only records
+
+    def _write(self, data: bytes | bytearray | memoryview) -> None:
+        self._stream.write(data)
+        self._offset += len(data)
+
+    def _record(self, record: Any) -> tuple[int, int]:
+        """Write a record of ``mcap.records``; returns its offset and length."""
+        record.write(self._builder)
+        data: bytes = self._builder.end()  # type: ignore[no-untyped-call]
+        offset = self._offset
+        self._write(data)
+        return offset, len(data)
+
+    def start(self, library: str) -> None:
+        """Magic and the Header record (profile ``""``: no well-known profile)."""
+        self._write(MAGIC)
+        self._record(Header(profile="", library=library))
+
+    def metadata(self, name: str, values: Mapping[str, str]) -> None:
+        """A Metadata record, indexed."""
+        offset, length = self._record(Metadata(name=name, metadata=dict(values)))
+        self._metadata_indexes.append(MetadataIndex(offset=offset, length=length, name=name))
+
+    def attachment(self, name: str, media_type: str, data: bytes) -> None:
+        """An Attachment record (times 0), indexed."""
+        offset, length = self._record(
+            Attachment(create_time=0, log_time=0, name=name, media_type=media_type, data=data)
+        )
+        self._attachment_indexes.append(
+            AttachmentIndex(
+                offset=offset,
+                length=length,
+                create_time=0,
+                log_time=0,
+                data_size=len(data),
+                name=name,
+                media_type=media_type,
+            )
+        )
+
+    def schema(self, name: str, encoding: str, data: bytes) -> int:
+        """A Schema record; returns its id (from 1)."""
+        schema = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
+        self._schemas.append(schema)
+        self._record(schema)
+        return schema.id
+
+    def channel(
+        self, topic: str, message_encoding: str, schema_id: int, metadata: Mapping[str, str]
+    ) -> int:
+        """A Channel record; returns its id (from 1)."""
+        channel = Channel(
+            id=len(self._channels) + 1,
+            topic=topic,
+            message_encoding=message_encoding,
+            schema_id=schema_id,
+            metadata=dict(metadata),
+        )
+        self._channels.append(channel)
+        self._index.append([])
+        self._counts.append(0)
+        self._record(channel)
+        return channel.id
+
+    # ------------------------------------------------------------------ messages
+
+    def message(self, channel_id: int, ns: int, data: bytes) -> None:
+        """A Message record (log and publish time ``ns``) into the current chunk."""
+        chunk = self._chunk
+        index = self._index[channel_id]
+        index.append(ns)
+        index.append(len(chunk))
+        self.sequence = sequence = (self.sequence + 1) & 0xFFFFFFFF
+        chunk += _MESSAGE_HEAD.pack(_OP_MESSAGE, 22 + len(data), channel_id, sequence, ns, ns)
+        chunk += data
+        self.last_ns = ns
+        if len(chunk) >= self._chunk_size:
+            self.close_chunk()
+
+    def close_chunk(self) -> None:
+        """Compress the current chunk and write it with its message indexes (if it holds
+        anything)."""
+        chunk = self._chunk
+        if not chunk:
+            return
+        self._chunk = bytearray()
+        records = bytes(chunk)
+        compressed = self._compress(records)
+        used = [(cid, index) for cid, index in enumerate(self._index) if index]
+        start = min(min(index[0::2]) for _, index in used)
+        end = max(max(index[0::2]) for _, index in used)
+        field = self._compression_field
+        # Chunk: opcode, length; start, end, uncompressed size, CRC; compression; records.
+        head = _CHUNK_HEAD.pack(
+            _OP_CHUNK,
+            8 + 8 + 8 + 4 + len(field) + 8 + len(compressed),
+            start,
+            end,
+            len(records),
+            zlib.crc32(records),
+        )
+        chunk_offset = self._offset
+        self._write(head + field + _LENGTH.pack(len(compressed)))
+        self._write(compressed)
+        chunk_length = self._offset - chunk_offset
+        # One Message Index per channel: its (log time, offset) pairs packed at once.
+        offsets: dict[int, int] = {}
+        pieces = []
+        index_offset = position = self._offset
+        for cid, index in used:
+            pairs = array("Q", index)
+            if _BIG_ENDIAN:
+                pairs.byteswap()
+            body = pairs.tobytes()
+            offsets[cid] = position
+            pieces.append(_INDEX_HEAD.pack(_OP_MESSAGE_INDEX, 6 + len(body), cid, len(body)))
+            pieces.append(body)
+            position += _INDEX_HEAD.size + len(body)
+            self._counts[cid] += len(index) // 2
+            index.clear()
+        self._write(b"".join(pieces))
+        self._chunk_indexes.append(
+            ChunkIndex(
+                message_start_time=start,
+                message_end_time=end,
+                chunk_start_offset=chunk_offset,
+                chunk_length=chunk_length,
+                message_index_offsets=offsets,
+                message_index_length=self._offset - index_offset,
+                compression=self._compression,
+                compressed_size=len(compressed),
+                uncompressed_size=len(records),
+            )
+        )
+        self._start_ns = start if self._start_ns is None else min(self._start_ns, start)
+        self._end_ns = max(self._end_ns, end)
+
+    def flush(self) -> None:
+        """Close the current chunk and hand everything to the operating system."""
+        self.close_chunk()
+        self._stream.flush()
+
+    def finish(self) -> None:
+        """The last chunk, Data End, the summary, the Footer and the closing magic."""
+        self.close_chunk()
+        self._record(DataEnd(data_section_crc=0))  # 0: not computed (optional)
+        summary_start = self._offset
+        builder = RecordBuilder()
+        groups: list[SummaryOffset] = []
+
+        def group(opcode: Opcode, records: Sequence[Any]) -> None:
+            start = builder.count
+            for record in records:
+                record.write(builder)
+            groups.append(SummaryOffset(opcode, summary_start + start, builder.count - start))
+
+        statistics = Statistics(
+            message_count=sum(self._counts),
+            schema_count=len(self._schemas),
+            channel_count=len(self._channels),
+            attachment_count=len(self._attachment_indexes),
+            metadata_count=len(self._metadata_indexes),
+            chunk_count=len(self._chunk_indexes),
+            message_start_time=self._start_ns or 0,
+            message_end_time=self._end_ns,
+            channel_message_counts={cid: count for cid, count in enumerate(self._counts) if count},
+        )
+        group(Opcode.SCHEMA, self._schemas)
+        group(Opcode.CHANNEL, self._channels)
+        group(Opcode.STATISTICS, [statistics])
+        group(Opcode.CHUNK_INDEX, self._chunk_indexes)
+        group(Opcode.ATTACHMENT_INDEX, self._attachment_indexes)
+        group(Opcode.METADATA_INDEX, self._metadata_indexes)
+        offsets_start = summary_start + builder.count
+        for offset in groups:
+            offset.write(builder)
+        summary: bytes = builder.end()  # type: ignore[no-untyped-call]
+        # The Footer's CRC covers the summary and the Footer's own fields before it.
+        footer = _FOOTER_HEAD.pack(_OP_FOOTER, 20, summary_start, offsets_start)
+        crc = zlib.crc32(footer, zlib.crc32(summary))
+        self._write(summary)
+        self._write(footer)
+        self._write(_CRC.pack(crc))
+        self._write(MAGIC)
+        self._stream.flush()
 
 
 def _unencodable(msg: Any) -> Any:
