@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from whexar.bench import replay
 from whexar.bench.record import measure
 
 
@@ -14,3 +15,10 @@ def test_the_bench_compares_a_recorded_run_with_a_plain_one() -> None:
     assert found["wall_s_without"] > 0
     assert 0 < found["max_cycle_delay_ms"] < 1000
     assert found["bytes_per_s"] > 10_000  # 42 servos at about 100 Hz, and their bytes
+
+
+def test_the_replay_bench_replays_a_recorded_run_as_fast_as_it_goes() -> None:
+    found = replay.measure(seconds=1.0, repeats=1)
+    assert found["replayed_s"] == 1.0
+    assert found["replay_realtime_factor"] > 0
+    assert found["replay_check_wall_s"] > 0  # and it agreed with the recording: no raise

@@ -23,7 +23,8 @@ the machine in the same state:
   collection that falls in one counts;
 * **bytes_per_s** — the file's size per simulated second.
 
-Replay speed (``replay_realtime_factor``) comes with ``whexar replay``.
+* **replay_realtime_factor** — a 60 s log replayed with ``--fast``
+  (:mod:`whexar.bench.replay`; target ≥ 50×).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from whexar.bench import Figure, Progress, Report
+from whexar.bench import replay as replay_bench
 from whexar.record.writer import Recorder
 from whexar.sim.scenario import DEFAULT_SCENARIO, load_scenario
 
@@ -110,6 +112,7 @@ def run(progress: Progress = None) -> Report:
     say = progress or (lambda _: None)
     say(f"course, first {BENCH_SECONDS:g} s simulated, without and with a recording…")
     found = measure(progress=progress)
+    replayed = replay_bench.measure(progress=progress)
     items = [
         Figure(
             "overhead_pct",
@@ -125,6 +128,14 @@ def run(progress: Progress = None) -> Report:
             "ms",
             DELAY_TARGET_MS,
         ),
+        Figure(
+            "replay_realtime_factor",
+            f"replay of a {replayed['replayed_s']:g} s log, --fast",
+            replayed["replay_realtime_factor"],
+            "×",
+            replay_bench.REPLAY_TARGET,
+            at_least=True,
+        ),
     ]
     notes = [
         f"{found['sim_seconds']:g} s simulated: {found['wall_s_without']:g} s of wall time "
@@ -133,7 +144,14 @@ def run(progress: Progress = None) -> Report:
         f"longest {found['max_cycle_delay_ms']:.3f} ms (a garbage collection that falls "
         "in a write counts in it)",
         f"file: {found['bytes_per_s'] / 1000:.1f} kB per simulated second",
-        "replay speed: not measured yet (whexar replay is still to come)",
+        f"replay of {replayed['replayed_s']:g} s: {replayed['replay_wall_s']:g} s with --fast, "
+        f"{replayed['replay_check_wall_s']:g} s with --check as well "
+        f"({replayed['replay_check_realtime_factor']:g}×; medians of {replay_bench.REPEATS})",
     ]
-    data = {k: found[k] for k in ("overhead_pct", "max_cycle_delay_ms", "bytes_per_s")}
+    data = {
+        "overhead_pct": found["overhead_pct"],
+        "max_cycle_delay_ms": found["max_cycle_delay_ms"],
+        "replay_realtime_factor": replayed["replay_realtime_factor"],
+        "bytes_per_s": found["bytes_per_s"],
+    }
     return Report("record", items, notes, data=data)
