@@ -51,6 +51,7 @@ class LiveView:
             raise UsageError(f"live view: cannot listen on {host}:{port}: {exc}") from None
         self.port: int = self._server.port
         self._channels: dict[int, foxglove.Channel] = {}
+        self._topics: set[str] = set()
 
     @property
     def url(self) -> str:
@@ -58,7 +59,14 @@ class LiveView:
         return f"ws://{self.host}:{self.port}"
 
     def add_channel(self, channel_id: int, topic: str, schema_name: str, schema: bytes) -> None:
-        """Advertise ``topic`` with its JSON Schema to every client."""
+        """Advertise ``topic`` with its JSON Schema to every client.
+
+        A server's topics are unique (foxglove-sdk keeps the first channel of a topic):
+        on a runtime channel that carries several types (``/events``) the first type
+        keeps the topic, the others are ``{topic}/{type}``; ``/log`` has them all."""
+        if topic in self._topics:
+            topic = f"{topic}/{schema_name}"
+        self._topics.add(topic)
         self._channels[channel_id] = foxglove.Channel(
             topic,
             schema=foxglove.Schema(name=schema_name, encoding="jsonschema", data=schema),

@@ -538,6 +538,7 @@ def replay(
                     feeds=fed,
                     observers=observers,
                     link_observer=None if recorder is None else recorder.link_bytes,
+                    keep_log=False,  # the checker and the recorder see every message
                 )
         finally:
             if recorder is not None:

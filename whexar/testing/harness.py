@@ -195,6 +195,13 @@ def _leaf(exc: BaseException) -> BaseException:
     return exc
 
 
+def _observer(log: MessageLog | None, observers: Sequence[Observer]) -> Observer | None:
+    found = [o for o in (log, *observers) if o is not None]
+    if not found:
+        return None
+    return found[0] if len(found) == 1 else fan_out(*found)
+
+
 def run_actors(
     graph: Graph | GraphSpec | Mapping[str, Any],
     *,
@@ -207,6 +214,7 @@ def run_actors(
     real_io: bool = False,
     observers: Sequence[Observer] = (),
     link_observer: LinkObserver | None = None,
+    keep_log: bool = True,
 ) -> RunResult:
     """Run ``graph`` (on virtual time by default) and return everything it published.
 
@@ -223,7 +231,10 @@ def run_actors(
 
     ``observers`` see every message too, after the log (a recorder);
     ``link_observer`` sees the raw bytes of the device links
-    (:class:`~whexar.runtime.supervisor.Runtime`).
+    (:class:`~whexar.runtime.supervisor.Runtime`). ``keep_log=False`` keeps no
+    message (the result's log and the harness's stay empty): a long run whose
+    observers see everything needs no copy of it, nor the garbage collector's
+    time to walk it.
     """
     if not isinstance(graph, Graph):
         graph = build_graph(graph, external=dict.fromkeys(feeds, HARNESS))
@@ -233,7 +244,7 @@ def run_actors(
     log = MessageLog()
     runtime = Runtime(
         built,
-        observer=log if not observers else fan_out(log, *observers),
+        observer=_observer(log if keep_log else None, observers),
         link_observer=link_observer,
         handle_signals=handle_signals,
     )
