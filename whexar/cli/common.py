@@ -24,26 +24,29 @@ def print_json(value: object) -> None:
     print(json.dumps(value, indent=None, sort_keys=False))
 
 
-def seconds(value: str) -> float:
-    """An argument type: a finite number of seconds > 0."""
+def _number(value: str, allowed: Callable[[float], bool], expected: str) -> float:
     try:
         number = float(value)
     except ValueError:
         number = math.nan
-    if not math.isfinite(number) or number <= 0:
-        raise argparse.ArgumentTypeError(f"{value!r}: expected a number of seconds > 0")
+    if not math.isfinite(number) or not allowed(number):
+        raise argparse.ArgumentTypeError(f"{value!r}: expected {expected}")
     return number
+
+
+def seconds(value: str) -> float:
+    """An argument type: a finite number of seconds > 0."""
+    return _number(value, lambda x: x > 0, "a number of seconds > 0")
 
 
 def instant(value: str) -> float:
     """An argument type: a time in seconds ≥ 0 (``--from``, ``--to``)."""
-    try:
-        number = float(value)
-    except ValueError:
-        number = math.nan
-    if not math.isfinite(number) or number < 0:
-        raise argparse.ArgumentTypeError(f"{value!r}: expected a time in seconds ≥ 0")
-    return number
+    return _number(value, lambda x: x >= 0, "a time in seconds ≥ 0")
+
+
+def factor(value: str) -> float:
+    """An argument type: a speed factor > 0 (``--speed``; 1 is real time)."""
+    return _number(value, lambda x: x > 0, "a factor > 0 (1 = real time)")
 
 
 RECORDINGS: Final = "recordings"

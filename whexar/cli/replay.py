@@ -27,7 +27,14 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from whexar.cli.common import DEFAULT_LIVE_PORT, Commands, instant, print_json, tcp_port
+from whexar.cli.common import (
+    DEFAULT_LIVE_PORT,
+    Commands,
+    factor,
+    instant,
+    print_json,
+    tcp_port,
+)
 from whexar.runtime.clock import monotonic
 
 if TYPE_CHECKING:
@@ -176,16 +183,6 @@ def _replay(args: argparse.Namespace) -> int:
     return 1 if result.divergence is not None else 0
 
 
-def _speed(value: str) -> float:
-    try:
-        number = float(value)
-    except ValueError:
-        number = math.nan
-    if not math.isfinite(number) or number <= 0:
-        raise argparse.ArgumentTypeError(f"{value!r}: expected a factor > 0 (1 = real time)")
-    return number
-
-
 def add_commands(commands: Commands) -> None:
     """Add this group's commands to the ``whexar`` command table."""
     cmd = commands.add_parser(
@@ -205,7 +202,7 @@ def add_commands(commands: Commands) -> None:
     cmd.add_argument("--to", dest="t_to", type=instant, metavar="T", help="stop at T (s)")
     pace = cmd.add_mutually_exclusive_group()
     pace.add_argument(
-        "--speed", type=_speed, metavar="X", help="X times real time (default: as fast as it goes)"
+        "--speed", type=factor, metavar="X", help="X times real time (default: as fast as it goes)"
     )
     pace.add_argument(
         "--fast", action="store_true", help="as fast as it goes, even with --live (the default)"
