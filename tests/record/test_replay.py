@@ -15,7 +15,7 @@ from whexar.record import replay as replay_module
 from whexar.record.reader import Recording
 from whexar.record.replay import Divergence, compare, replay
 from whexar.record.writer import Recorder
-from whexar.sim.run import simulate
+from whexar.sim.run import SimResult, simulate
 from whexar.testing.walk import command
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -24,11 +24,24 @@ DURATION_S = 3.0
 
 
 @pytest.fixture(scope="module")
-def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SimResult]:
     """Three seconds of the simulated robot: standing up, then riding off."""
     path = tmp_path_factory.mktemp("replay") / "run.mcap"
-    simulate(commands=COMMANDS, duration=DURATION_S, record=path)
-    return path
+    return path, simulate(commands=COMMANDS, duration=DURATION_S, record=path)
+
+
+@pytest.fixture
+def recorded(recorded_run: tuple[Path, SimResult]) -> Path:
+    return recorded_run[0]
+
+
+def test_a_replay_delivers_what_the_run_delivered(recorded_run: tuple[Path, SimResult]) -> None:
+    # No channel drops a message the run did not: the same counts, channel by channel.
+    path, run = recorded_run
+    result = replay(path)
+    for name, stats in run.run.stats.items():
+        again = result.channels[name]
+        assert (again.published, dict(again.dropped)) == (stats.published, dict(stats.dropped))
 
 
 def _config(tmp_path: Path, old: str, new: str) -> Path:

@@ -294,6 +294,7 @@ class ReplayResult:
     recorded_s: float
     """Seconds the recording holds (readable)."""
     wall_s: float
+    """Wall time of the whole replay, reading the recording included."""
     run: RunResult
     fed: dict[str, int]
     """Messages fed from the recording, per channel."""
@@ -464,6 +465,7 @@ def replay(
     file to record the replay into; ``live`` a live view fed as a run's.
     ``progress(t, end)`` is called about every replayed second.
     """
+    wall = monotonic()  # reading the recording counts: it is part of a replay
     path = Path(path)
     rec = Recording(path)
     rec.check_compatible()
@@ -528,7 +530,6 @@ def replay(
                     await h.feed(channel, msg)
                 await h.sleep(math.inf)
 
-        wall = monotonic()
         try:
             with _Registered(devices):
                 result = run_actors(
