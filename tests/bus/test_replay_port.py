@@ -50,6 +50,7 @@ def _record(session: Session) -> tuple[list[Any], list[tuple[str, float, bytes]]
     bus = DxlBus(port)
     results = session(bus)
     clock[0] += port.take_elapsed()
+    port.closePort()  # the last reads are reported once something else happens
     return results, events, clock
 
 

@@ -582,16 +582,33 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
 def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
     """Report every byte the SDK writes to ``port`` and every byte it reads from it.
 
-    ``tap`` gets ``("tx" | "rx", now(), bytes)`` after each write and each read that
-    returned bytes, and ``("timeout", now(), b"")`` when the SDK's wait for a reply
+    ``tap`` gets ``("tx", now(), bytes)`` after each write, ``("rx", t, bytes)`` for
+    the bytes read, and ``("timeout", now(), b"")`` when the SDK's wait for a reply
     times out (a recorder: :meth:`whexar.runtime.actor.Actor.tap`); bytes the SDK
     drops unread with ``clearPort()`` never reached it, so they are not reported.
-    The instance's three methods are wrapped, nothing else: the SDK keeps using the
-    port's own attributes directly, at no extra cost.
+
+    Reads stamped alike are reported as one chunk, when something else happens on
+    the port (a write, a timeout, a read at another time, ``closePort()``): the SDK
+    reads a status packet in two or three pieces, and a sync read of 42 servos
+    would otherwise be some hundred reports per cycle. The instance's methods are
+    wrapped, nothing else: the SDK keeps using the port's own attributes directly.
     """
-    write, read, timed_out = port.writePort, port.readPort, port.isPacketTimeout
+    write, read, timed_out, close = (
+        port.writePort,
+        port.readPort,
+        port.isPacketTimeout,
+        port.closePort,
+    )
+    got: list[bytes] = []
+    got_at = [0.0]
+
+    def report() -> None:
+        tap("rx", got_at[0], b"".join(got))
+        got.clear()
 
     def write_port(packet: Any) -> Any:
+        if got:
+            report()
         sent = write(packet)
         # Stamped once written: on an emulated port that is the transaction's end in bus
         # time, which a replay needs to charge the same time for it.
@@ -601,18 +618,30 @@ def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
     def read_port(length: int) -> Any:
         data = read(length)
         if data:
-            tap("rx", now(), bytes(data))
+            t = now()
+            if got and t != got_at[0]:
+                report()
+            got.append(bytes(data))
+            got_at[0] = t
         return data
 
     def is_packet_timeout() -> Any:
         over = timed_out()
         if over:  # stamped once given up: the bus time the wait cost, for a replay
+            if got:
+                report()
             tap("timeout", now(), b"")
         return over
+
+    def close_port() -> Any:
+        if got:
+            report()
+        return close()
 
     port.writePort = write_port
     port.readPort = read_port
     port.isPacketTimeout = is_packet_timeout
+    port.closePort = close_port
 
 
 def open_port(name: str, baudrate: int) -> Any:
