@@ -5,6 +5,7 @@
 * :mod:`~whexar.bus.plan` — read plans (what the scheduler reads, how often);
 * :mod:`~whexar.bus.sdk` — dynamixel-sdk behind one adapter, and the port owners;
 * :mod:`~whexar.bus.scan` — ``whexar bus scan``;
+* :mod:`~whexar.bus.replay` — a recorded bus played back to dynamixel-sdk (``whexar replay``);
 * :mod:`whexar.bus.emulator` — the servos in-process or on a pty, with fault plans.
 
 May import :mod:`whexar.robot`, :mod:`whexar.errors` and :mod:`whexar.runtime`

@@ -6,7 +6,9 @@
 * :mod:`~whexar.sensors.usart` — the serial rates the board's ATmega2560 can run at;
 * :mod:`~whexar.sensors.gravity` — whether an accelerometer reading is gravity (tilt or none);
 * :mod:`~whexar.sensors.lsm9ds1` — the LSM9DS1 IMU driver over an SMBus;
-* :mod:`~whexar.sensors.imu_emulator` — a fake I²C bus and a register-level LSM9DS1.
+* :mod:`~whexar.sensors.imu_emulator` — a fake I²C bus and a register-level LSM9DS1;
+* :mod:`~whexar.sensors.replay` — the board's link and the IMU's calls played back from a
+  recording (``whexar replay``).
 
 May import: :mod:`whexar.kinematics` (the ADC conversions of eq. 5.5–5.7),
 :mod:`whexar.robot`, :mod:`whexar.errors` and :mod:`whexar.runtime` — never the
