@@ -155,6 +155,33 @@ def test_a_run_of_a_wiring_file_replays_without_its_command_source(
     assert fed["commands"] >= 1  # what the script said, fed at its times
 
 
+def test_a_run_with_faults_replays_its_faults(tmp_path: Path) -> None:
+    # A femur that goes silent (the bus stops the robot), the board's cable out and back,
+    # corrupted frames, the IMU unplugged: all of it is in the bytes, and replays.
+    from whexar.sim.faults import SensorFault
+
+    path = tmp_path / "faults.mcap"
+    sensor_faults = [
+        SensorFault(at_s=0.8, kind="unplug", device="board", duration_s=0.5),
+        SensorFault(at_s=1.6, kind="corrupt", frames=2),
+        SensorFault(at_s=0.5, kind="unplug", device="imu", duration_s=0.4),
+    ]
+    simulate(
+        commands=COMMANDS,
+        duration=DURATION_S,
+        faults=ROOT / "config" / "faults" / "dead-femur.toml",
+        sensor_faults=sensor_faults,
+        record=path,
+    )
+    directions = {
+        r.value.direction for r in Recording(path).records(["/links/sensors", "/links/imu"])
+    }
+    assert {"gone", "open", "error"} <= directions
+    result = replay(path, check=True)
+    assert result.divergence is None, result.divergence.describe()
+    assert "0 differing, 0 waits not recorded" in result.links["bus"]
+
+
 def test_what_cannot_be_replayed_says_why(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -64,3 +64,17 @@ def test_a_fault_on_the_wrong_device_is_a_scenario_problem() -> None:
         parse_scenario(unknown, "<test>")
     assert "sensor_faults" in str(err2.value)
     assert "melt" in str(err2.value)
+
+
+def test_a_bus_fault_plan_reaches_the_simulated_servos() -> None:
+    # The RF femur (servo 3) goes silent at 2 s: the bus scheduler finds it and, the
+    # femur being critical, stops the robot safely.
+    from whexar.actors.messages import BusLost, ServoFault
+    from whexar.sim.run import simulate
+
+    result = simulate(duration=3.0, faults="config/faults/dead-femur.toml")
+    faults = result.run.log.events(of=ServoFault)
+    assert faults
+    assert {f.servo_id for f in faults} == {3}
+    assert min(f.t for f in faults) > 2.0
+    assert result.run.log.events(of=BusLost)

@@ -38,6 +38,7 @@ from whexar.actors.messages import (
     MotionCommand,
 )
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
+from whexar.bus.emulator.faults import FaultInjector, load_fault_plan
 from whexar.config import RobotConfig, load_config
 from whexar.kinematics.body import Stance, stance_feet
 from whexar.kinematics.leg import ik
@@ -161,17 +162,17 @@ def seated_angles(cfg: RobotConfig) -> dict[tuple[int, int], float]:
     return {(leg, j): float(angles[leg, j]) for leg in range(len(LEG_NAMES)) for j in range(5)}
 
 
-def sim_graph(name: str, *, faults: str | None = None, config: str | None = None) -> dict[str, Any]:
+def sim_graph(name: str, *, config: str | None = None) -> dict[str, Any]:
     """The robot's actor graph on the devices registered as ``name``; commands are fed.
 
     The graph of the locomotion tests (:func:`whexar.testing.walk.walk_graph`) with the
     sensor board and the IMU: ``config`` is the robot configuration file every actor
-    reads (default: the built-in), ``faults`` a bus fault plan."""
-    bus: dict[str, Any] = {"plan": "default", **({"faults": faults} if faults else {})}
+    reads (default: the built-in). A bus fault plan acts on the registered chain
+    (:func:`simulate` attaches it), not on the bus scheduler."""
     return walk_graph(
         f"emulator:{name}",
         config=config,
-        bus_params=bus,
+        bus_params={"plan": "default"},
         sensors=f"emulator:{name}",
         imu=f"fake:{name}",
     )
@@ -220,6 +221,8 @@ def simulate(
     board = SensorBoardEmulator(
         frame_rate_hz=cfg.sensor_board.frame_rate_hz, baudrate=cfg.sensor_board.baudrate
     )
+    if faults is not None:  # the chain is the run's: its faults are attached here
+        FaultInjector(load_fault_plan(faults)).attach(chain)
     chip = FakeLsm9ds1()
     i2c = FakeSMBus(cfg.imu.i2c_bus)
     i2c.attach(cfg.imu.address, chip)
@@ -331,11 +334,7 @@ def simulate(
             t += SAMPLE_PERIOD_S
             await h.sleep_until(t)
 
-    graph = sim_graph(
-        name,
-        faults=str(faults) if faults else None,
-        config=str(config) if config else None,
-    )
+    graph = sim_graph(name, config=str(config) if config else None)
     if record is None and live is not None:
         record = os.devnull  # the live view is fed by the recorder
     metadata = {"duration_s": repr(float(duration)), **(record_metadata or {})}
