@@ -215,3 +215,12 @@ def test_the_comparison_names_the_field() -> None:
     )
     text = Divergence("message", "tilt", 1.0, "BodyTilt.pitch", "0.2", "0.25").describe()
     assert text.startswith("diverged at t = 1.000000 s on tilt: BodyTilt.pitch differs")
+
+
+def test_the_command_line_tolerance_is_the_replays() -> None:
+    from whexar.cli import replay as cli_replay
+    from whexar.record.replay import FLOAT_TOLERANCE
+
+    assert cli_replay.FLOAT_TOLERANCE == FLOAT_TOLERANCE
+    assert compare(1.0, 1.0 + 1e-6) is not None
+    assert compare(1.0, 1.0 + 1e-6, tolerance=1e-5) is None

@@ -44,6 +44,11 @@ def instant(value: str) -> float:
     return _number(value, lambda x: x >= 0, "a time in seconds ≥ 0")
 
 
+def tolerance(value: str) -> float:
+    """An argument type: a tolerance ≥ 0 (``--tolerance``)."""
+    return _number(value, lambda x: x >= 0, "a tolerance ≥ 0, e.g. 1e-6")
+
+
 def factor(value: str) -> float:
     """An argument type: a speed factor > 0 (``--speed``; 1 is real time)."""
     return _number(value, lambda x: x > 0, "a factor > 0 (1 = real time)")

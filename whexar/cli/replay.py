@@ -34,11 +34,16 @@ from whexar.cli.common import (
     instant,
     print_json,
     tcp_port,
+    tolerance,
 )
 from whexar.runtime.clock import monotonic
 
 if TYPE_CHECKING:
     from whexar.record.replay import ReplayResult
+
+FLOAT_TOLERANCE: Final = 1e-9
+"""``--tolerance``'s default: :data:`whexar.record.replay.FLOAT_TOLERANCE` (not imported
+here, so that ``whexar --help`` stays fast)."""
 
 CLEAR_LINE: Final = "\r\x1b[K"
 LOG_EVERY_S: Final = 10.0
@@ -169,6 +174,7 @@ def _replay(args: argparse.Namespace) -> int:
             record=args.record,
             live=live,
             progress=None if args.json else progress,
+            tolerance=args.tolerance,
         )
     finally:
         progress.finish()
@@ -211,6 +217,15 @@ def add_commands(commands: Commands) -> None:
         "--check",
         action="store_true",
         help="compare every message with the recorded one; exit 1 at the first divergence",
+    )
+    cmd.add_argument(
+        "--tolerance",
+        type=tolerance,
+        default=FLOAT_TOLERANCE,
+        metavar="X",
+        help=f"floats agree within X, relative to the larger (default {FLOAT_TOLERANCE:g}: "
+        "a log of a run on virtual time replays to the last bit; one recorded in real time "
+        "carries its timers' jitter)",
     )
     cmd.add_argument(
         "--config",

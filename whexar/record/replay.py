@@ -137,60 +137,71 @@ class Divergence:
         )
 
 
-def _close(a: float, b: float) -> bool:
-    if a == b or (math.isnan(a) and math.isnan(b)):
-        return True
-    return abs(a - b) <= FLOAT_TOLERANCE * max(1.0, abs(a), abs(b))
-
-
 def _short(value: Any, limit: int = 400) -> str:
     text = repr(value)
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def compare(
-    recorded: Any, replayed: Any, path: str = "", aliases: Mapping[str, str] | None = None
+    recorded: Any,
+    replayed: Any,
+    path: str = "",
+    aliases: Mapping[str, str] | None = None,
+    tolerance: float = FLOAT_TOLERANCE,
 ) -> tuple[str, Any, Any] | None:
     """The first difference between two values: ``(path, recorded, replayed)``, or ``None``.
 
     Dataclasses field by field, sequences and mappings item by item, floats within
-    :data:`FLOAT_TOLERANCE`, everything else exactly. ``aliases`` maps a played-back
-    device's name to the recorded one (``replay:sensors`` → ``/dev/ttyACM0``): a
-    replayed string naming it counts as naming the recorded device."""
-    if aliases and isinstance(replayed, str) and isinstance(recorded, str):
-        for alias, name in aliases.items():
-            replayed = replayed.replace(alias, name)
-    if type(recorded) is not type(replayed):
-        if isinstance(recorded, int | float) and isinstance(replayed, int | float):
-            return None if _close(float(recorded), float(replayed)) else (path, recorded, replayed)
-        return path, recorded, replayed
-    if isinstance(recorded, float):
-        return None if _close(recorded, replayed) else (path, recorded, replayed)
-    if is_dataclass(recorded):
-        for f in fields(recorded):
-            found = compare(
-                getattr(recorded, f.name), getattr(replayed, f.name), f"{path}.{f.name}", aliases
+    ``tolerance`` (relative to the larger, and at least absolute), everything else
+    exactly. ``aliases`` maps a played-back device's name to the recorded one
+    (``replay:sensors`` → ``/dev/ttyACM0``): a replayed string naming it counts as
+    naming the recorded device."""
+    return _Comparison(aliases or {}, tolerance).first(recorded, replayed, path)
+
+
+class _Comparison:
+    def __init__(self, aliases: Mapping[str, str], tolerance: float) -> None:
+        self.aliases = aliases
+        self.tolerance = tolerance
+
+    def close(self, a: float, b: float) -> bool:
+        if a == b or (math.isnan(a) and math.isnan(b)):
+            return True
+        return abs(a - b) <= self.tolerance * max(1.0, abs(a), abs(b))
+
+    def first(self, recorded: Any, replayed: Any, path: str) -> tuple[str, Any, Any] | None:
+        if self.aliases and isinstance(replayed, str) and isinstance(recorded, str):
+            for alias, name in self.aliases.items():
+                replayed = replayed.replace(alias, name)
+        if type(recorded) is not type(replayed):
+            numbers = isinstance(recorded, int | float) and isinstance(replayed, int | float)
+            if numbers and self.close(float(recorded), float(replayed)):
+                return None
+            return path, recorded, replayed
+        if isinstance(recorded, float):
+            return None if self.close(recorded, replayed) else (path, recorded, replayed)
+        pairs: Iterator[tuple[str, Any, Any]]
+        if is_dataclass(recorded):
+            pairs = (
+                (f"{path}.{f.name}", getattr(recorded, f.name), getattr(replayed, f.name))
+                for f in fields(recorded)
             )
+        elif isinstance(recorded, list | tuple):
+            if len(recorded) != len(replayed):
+                return f"{path} (length)", len(recorded), len(replayed)
+            together = enumerate(zip(recorded, replayed, strict=True))
+            pairs = ((f"{path}[{k}]", a, b) for k, (a, b) in together)
+        elif isinstance(recorded, Mapping):
+            if recorded.keys() != replayed.keys():
+                return f"{path} (keys)", sorted(map(str, recorded)), sorted(map(str, replayed))
+            pairs = ((f"{path}[{key!r}]", recorded[key], replayed[key]) for key in recorded)
+        else:
+            return None if recorded == replayed else (path, recorded, replayed)
+        for where, a, b in pairs:
+            found = self.first(a, b, where)
             if found is not None:
                 return found
         return None
-    if isinstance(recorded, list | tuple):
-        if len(recorded) != len(replayed):
-            return f"{path} (length)", len(recorded), len(replayed)
-        for k, (a, b) in enumerate(zip(recorded, replayed, strict=True)):
-            found = compare(a, b, f"{path}[{k}]", aliases)
-            if found is not None:
-                return found
-        return None
-    if isinstance(recorded, Mapping):
-        if recorded.keys() != replayed.keys():
-            return f"{path} (keys)", sorted(map(str, recorded)), sorted(map(str, replayed))
-        for key in recorded:
-            found = compare(recorded[key], replayed[key], f"{path}[{key!r}]", aliases)
-            if found is not None:
-                return found
-        return None
-    return None if recorded == replayed else (path, recorded, replayed)
 
 
 class _Checker:
@@ -213,8 +224,8 @@ class _Checker:
         """The replay runs to the recording's end: what is published while stopping counts."""
         self.now: Callable[[], float] = lambda: -math.inf
         """The runtime clock (set once the run starts)."""
-        self.aliases: dict[str, str] = {}
-        """Played-back device → the recorded one (:func:`compare`)."""
+        self.comparison = _Comparison({}, FLOAT_TOLERANCE)
+        """How values are compared (:func:`compare`): device aliases, float tolerance."""
         self.compared = 0
         self.divergence: Divergence | None = None
         self.on_divergence: Callable[[], None] = lambda: None
@@ -247,7 +258,7 @@ class _Checker:
         if type(recorded) is not type(msg):
             self._diverged("type", channel, recorded.t, name, _short(recorded), _short(msg))
             return
-        found = compare(recorded, msg, name, self.aliases)
+        found = self.comparison.first(recorded, msg, name)
         if found is not None:
             path, a, b = found
             self._diverged("message", channel, recorded.t, path, _short(a), _short(b))
@@ -455,12 +466,14 @@ def replay(
     record: str | Path | None = None,
     live: LiveSink | None = None,
     progress: Callable[[float, float], None] | None = None,
+    tolerance: float = FLOAT_TOLERANCE,
 ) -> ReplayResult:
     """Replay recording ``path`` (module docstring) and return what it did.
 
     ``speed``: replayed seconds per wall second from ``start`` on (``None``: as fast as
     possible). ``check``: compare every published message with the recorded one and stop
-    at the first divergence (:attr:`ReplayResult.divergence`). ``config``: the robot
+    at the first divergence (:attr:`ReplayResult.divergence`), floats within
+    ``tolerance`` (:func:`compare`). ``config``: the robot
     configuration file to replay with instead of the recorded one. ``record``: an MCAP
     file to record the replay into; ``live`` a live view fed as a run's.
     ``progress(t, end)`` is called about every replayed second.
@@ -509,7 +522,7 @@ def replay(
             # Where a damaged file is cut, the last instants are only partly there.
             cut = not to_the_end and end >= recorded_s
             checker = _Checker(expected, set(fed), start, end - LATE_S if cut else end, whole)
-            checker.aliases = aliases
+            checker.comparison = _Comparison(aliases, tolerance)
         recorder = None
         if record is not None or live is not None:
             recorder = _recorder(record, live, rec, graph)
