@@ -375,17 +375,32 @@ def _cycle_job(
     return job
 
 
-def _enable_job(servos: Sequence[_Servo]) -> Callable[[DxlBus], SyncReadResult]:
-    """Write each goal (so torque-on holds still), torque on, and read Torque Enable back."""
-    pos = {s.id: _pack_i32(s.goal or 0) for s in servos if not s.endless}
+def _enable_job(
+    servos: Sequence[_Servo],
+) -> Callable[[DxlBus], tuple[SyncReadResult, dict[int, int]]]:
+    """Read where each limp joint is now and make that its goal, so that torque-on holds
+    it still; torque on; read Torque Enable back. Returns the read-back and the position
+    goals written (each within its joint's limits).
+
+    The positions are read in the same job as torque-on: a limp joint sags under the
+    robot's weight, and a position read before (the start-up's survey, tens of ms
+    earlier) would pull it back with a jolt. A servo that does not answer keeps the
+    goal it had."""
+    joints = [s for s in servos if not s.endless]
     vel = {s.id: _pack_i32(s.goal or 0) for s in servos if s.endless}
     ids = [s.id for s in servos]
 
-    def job(bus: DxlBus) -> SyncReadResult:
-        bus.sync_write(_GOAL_POSITION.address, 4, pos)
+    def job(bus: DxlBus) -> tuple[SyncReadResult, dict[int, int]]:
+        now = bus.sync_read([s.id for s in joints], _REG_POSITION.address, 4) if joints else None
+        goals: dict[int, int] = {}
+        for s in joints:
+            data = now.data.get(s.id) if now is not None else None
+            tick = int.from_bytes(data, "little", signed=True) if data else s.goal or 0
+            goals[s.id] = s.clamp_tick(tick)
+        bus.sync_write(_GOAL_POSITION.address, 4, {i: _pack_i32(g) for i, g in goals.items()})
         bus.sync_write(_GOAL_VELOCITY.address, 4, vel)
         bus.sync_write(_TORQUE.address, 1, dict.fromkeys(ids, b"\x01"))
-        return bus.sync_read(ids, _TORQUE.address, 1)
+        return bus.sync_read(ids, _TORQUE.address, 1), goals
 
     return job
 
@@ -675,12 +690,14 @@ class BusScheduler(Actor):
         )
 
     async def _enable_torque(self, owner: PortOwner, servos: Sequence[_Servo]) -> None:
-        """Write each goal (so torque-on holds still), then torque on, verified, with retries."""
+        """Hold each joint where it is (:func:`_enable_job`), then torque on, verified, with
+        retries."""
         attempts = self.cfg.bus.torque_retries
         todo = list(servos)
         for _ in range(attempts):
-            check = await owner.call(_enable_job(todo))
+            check, goals = await owner.call(_enable_job(todo))
             for s in todo:
+                s.goal = goals.get(s.id, s.goal)
                 s.sent = s.goal
             todo = [s for s in todo if check.data.get(s.id, b"\x00")[0] != 1]
             if not todo:
