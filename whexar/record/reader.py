@@ -213,6 +213,13 @@ class Recording:
                 opcode, length = _HEAD.unpack(head)
                 end = pos + _HEAD.size + length
                 name = _opcode_name(opcode)
+                if opcode not in _OPCODES and opcode < _PRIVATE:
+                    # No MCAP record starts with this byte (0x80 on are private records,
+                    # skipped): not a cut, the bytes are wrong.
+                    self._damaged(
+                        pos, last_ns, f"no record starts here (opcode {opcode:#04x}): corrupted"
+                    )
+                    return
                 if end > size:
                     have = size - pos - _HEAD.size
                     why = (
@@ -442,6 +449,11 @@ _READ: dict[int, Callable[[bytes], Any]] = {
 
 def _stream(data: bytes) -> ReadDataStream:
     return ReadDataStream(io.BytesIO(data))
+
+
+_OPCODES: Final = frozenset(int(op) for op in Opcode)
+_PRIVATE: Final = 0x80
+"""Opcodes 0x80 to 0xFF are reserved for private records (MCAP spec, "Records")."""
 
 
 def _opcode_name(opcode: int) -> str:
