@@ -77,6 +77,27 @@ def test_a_damaged_chunk_ends_the_readable_part_there(
     assert max(r.log_time for r in records) <= recording.damage.last_ns  # type: ignore[operator]
 
 
+def test_a_chunk_length_gone_wrong_is_corruption_not_a_cut(
+    recorded_run: RecordedRun, tmp_path: Path
+) -> None:
+    # The walk jumps by the corrupted length to where no record starts.
+    data = bytearray(recorded_run.path.read_bytes())
+    with open(recorded_run.path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    second = summary.chunk_indexes[1]
+    length_at = second.chunk_start_offset + 1  # opcode, then the record's length
+    length = int.from_bytes(data[length_at : length_at + 8], "little")
+    data[length_at : length_at + 8] = (length - 1).to_bytes(8, "little")
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    recording = Recording(bad)
+    assert recording.damage is not None
+    assert recording.damage.offset == second.chunk_start_offset + 9 + length - 1
+    assert "no record starts here" in recording.damage.reason
+    assert list(recording.records())  # what comes before is read
+
+
 def test_recover_makes_a_complete_file_of_the_readable_part(
     recorded_run: RecordedRun, tmp_path: Path
 ) -> None:

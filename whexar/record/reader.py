@@ -213,9 +213,9 @@ class Recording:
                 opcode, length = _HEAD.unpack(head)
                 end = pos + _HEAD.size + length
                 name = _opcode_name(opcode)
-                if opcode not in _OPCODES and opcode < _PRIVATE:
+                if opcode not in _OPCODES and (opcode < _PRIVATE or "whexar" in self.metadata):
                     # No MCAP record starts with this byte (0x80 on are private records,
-                    # skipped): not a cut, the bytes are wrong.
+                    # which whexar never writes): not a cut, the bytes are wrong.
                     self._damaged(
                         pos, last_ns, f"no record starts here (opcode {opcode:#04x}): corrupted"
                     )
@@ -460,7 +460,7 @@ def _opcode_name(opcode: int) -> str:
     try:
         return Opcode(opcode).name.lower().replace("_", " ")
     except ValueError:
-        return f"unknown (opcode {opcode:#04x})"
+        return f"private (opcode {opcode:#04x})"
 
 
 def _why(exc: BaseException) -> str:
