@@ -224,3 +224,15 @@ def test_the_command_line_tolerance_is_the_replays() -> None:
     assert cli_replay.FLOAT_TOLERANCE == FLOAT_TOLERANCE
     assert compare(1.0, 1.0 + 1e-6) is not None
     assert compare(1.0, 1.0 + 1e-6, tolerance=1e-5) is None
+
+
+def test_a_replay_serves_the_live_view_and_can_be_paced(
+    recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    again = tmp_path / "again.mcap"
+    args = ["replay", str(recorded), "--to", "1", "--speed", "50", "--live", "0"]
+    assert main([*args, "--record", str(again)]) == 0
+    assert "live view: ws://127.0.0.1:" in capsys.readouterr().err
+    # The replay's own recording is a recording like any other: it replays too.
+    assert Recording(again).metadata["run"]["kind"] == "replay"
+    assert replay(again, check=True).divergence is None

@@ -525,7 +525,7 @@ def replay(
             checker.comparison = _Comparison(aliases, tolerance)
         recorder = None
         if record is not None or live is not None:
-            recorder = _recorder(record, live, rec, graph)
+            recorder = _recorder(record, live, rec, graph, end)
         observers = [o for o in (checker, recorder) if o is not None]
 
         async def scenario(h: Harness) -> None:
@@ -699,7 +699,11 @@ async def _clock(
 
 
 def _recorder(
-    record: str | Path | None, live: LiveSink | None, rec: Recording, graph: Mapping[str, Any]
+    record: str | Path | None,
+    live: LiveSink | None,
+    rec: Recording,
+    graph: Mapping[str, Any],
+    end: float,
 ) -> Recorder:
     import os
 
@@ -711,7 +715,8 @@ def _recorder(
             attachments[name] = rec.attachments[name].data
     recorder = Recorder(
         record if record is not None else os.devnull,
-        metadata={"kind": "replay", "replayed": str(rec.path)},
+        # Where this replay stops is its run's duration: a replay of it stops there too.
+        metadata={"kind": "replay", "replayed": str(rec.path), "duration_s": repr(end)},
         attachments=attachments,
         live=live,
     )
