@@ -92,9 +92,9 @@ class LiveView:
 
 
 def _joint_plot(leg: int) -> fl.PlotPanel:
-    """Goal against present angle of one leg's femur and tibia (thesis Fig. 6.2)."""
+    """Goal against present angle of each of one leg's six angle joints (thesis Fig. 6.2)."""
     paths: list[fl.PlotSeries] = []
-    for joint in (2, 3):  # femur, tibia
+    for joint in range(6):  # coxa … wheel direction: the wheel drive turns at a speed
         name = JOINT_NAMES[joint]
         paths += [
             fl.PlotSeries(
@@ -113,10 +113,42 @@ def _joint_plot(leg: int) -> fl.PlotPanel:
     )
 
 
+PHASE_COLORS: Final = {
+    "swing": "#1f77b4",
+    "stance": "#2ca02c",
+    "move": "#ff7f0e",
+    "hold": "#7f7f7f",
+    "reflex": "#d62728",
+}
+"""A colour per leg phase (:class:`~whexar.actors.messages.LegState`) in the gait diagram."""
+
+
+def _gait_diagram() -> fl.StateTransitionsPanel:
+    """Each leg's phase over time (thesis Fig. 3.3): ``/legs`` filtered per leg."""
+    states = fl.StateTransitionsDiscreteCustomStates(
+        states=[
+            fl.StateTransitionsDiscreteCustomState(value=phase, label=phase, color=color)
+            for phase, color in PHASE_COLORS.items()
+        ]
+    )
+    return fl.StateTransitionsPanel(
+        title="Gait diagram: each leg's phase",
+        config=fl.StateTransitionsConfig(
+            paths=[
+                fl.StateTransitionsSeries(
+                    value=f"/legs{{leg=={leg}}}.phase", label=name, custom_states=states
+                )
+                for leg, name in enumerate(LEG_NAMES)
+            ],
+            show_legend=True,
+        ),
+    )
+
+
 def layout() -> fl.Layout:
     """WHexaR's Foxglove layout: the robot in 3D (the URDF from ``/robot_description``,
-    moved by ``/joint_states``, placed by ``/tf``), goal against present angle,
-    currents, the body's tilt and the event log."""
+    moved by ``/joint_states``, placed by ``/tf``), the gait diagram, goal against
+    present angle, currents, the body's tilt and the event log."""
     three_d = fl.ThreeDeePanel(
         title="WHexaR",
         config=fl.ThreeDeeConfig(
@@ -158,10 +190,18 @@ def layout() -> fl.Layout:
         ),
     )
     events = fl.LogPanel(title="Events", config=fl.LogConfig(topic_to_render="/log"))
+    gait = _gait_diagram()
     plots = fl.SplitContainer(
         direction="column",
         items=[
-            fl.SplitItem(content=_joint_plot(0)),
+            fl.SplitItem(
+                content=fl.TabContainer(
+                    tabs=[
+                        fl.TabItem(title=name, content=_joint_plot(leg))
+                        for leg, name in enumerate(LEG_NAMES)
+                    ]
+                )
+            ),
             fl.SplitItem(content=currents),
             fl.SplitItem(content=tilt),
         ],
@@ -176,6 +216,7 @@ def layout() -> fl.Layout:
                         direction="column",
                         items=[
                             fl.SplitItem(proportion=3, content=three_d),
+                            fl.SplitItem(proportion=1, content=gait),
                             fl.SplitItem(proportion=1, content=events),
                         ],
                     ),
