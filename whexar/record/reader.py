@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import heapq
 import io
-import json
 import os
 import struct
 from collections.abc import Callable, Collection, Iterator
@@ -56,6 +55,7 @@ from whexar.record.encoding import (
     RecordingError,
     codec_by_name,
     decode_link,
+    loads,
 )
 from whexar.runtime.messages import MESSAGE_TYPES, Message
 
@@ -495,10 +495,7 @@ def _decoder(channel: Channel, schema: str) -> Callable[[bytes], Any]:
 
 
 def _json(data: bytes) -> Any:
-    try:
-        return json.loads(data)
-    except ValueError as exc:
-        raise EncodingError(f"not JSON: {exc}") from None
+    return loads(data, "JSON message")
 
 
 # --------------------------------------------------------------------------- recover
