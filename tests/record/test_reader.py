@@ -4,11 +4,13 @@ makes it a complete file; a recording of another version is refused clearly."""
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
 from mcap.reader import make_reader
+from mcap.records import ChunkIndex
 from mcap.writer import Writer
 
 from whexar.record.encoding import RecordingError
@@ -55,20 +57,33 @@ def test_a_file_cut_anywhere_reads_up_to_where_it_ends(
     assert counts[-1] == sum(full.values())  # cut in the index: every message is there
 
 
-def test_a_damaged_chunk_ends_the_readable_part_there(
-    recorded_run: RecordedRun, tmp_path: Path
-) -> None:
-    data = bytearray(recorded_run.path.read_bytes())
-    with open(recorded_run.path, "rb") as f:
+def _chunks(path: Path) -> list[ChunkIndex]:
+    """The chunk indexes of a complete recording, as the ``mcap`` package reads them."""
+    with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
     assert summary is not None
     assert len(summary.chunk_indexes) >= 3
-    third = summary.chunk_indexes[2]
-    middle = third.chunk_start_offset + third.chunk_length // 2
-    data[middle] ^= 0xFF
+    return list(summary.chunk_indexes)
+
+
+def _damaged(path: Path, tmp_path: Path, change: Callable[[bytearray], None]) -> Recording:
+    data = bytearray(path.read_bytes())
+    change(data)
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(bytes(data))
-    recording = Recording(bad)
+    return Recording(bad)
+
+
+def test_a_damaged_chunk_ends_the_readable_part_there(
+    recorded_run: RecordedRun, tmp_path: Path
+) -> None:
+    third = _chunks(recorded_run.path)[2]
+    middle = third.chunk_start_offset + third.chunk_length // 2
+
+    def flip(data: bytearray) -> None:
+        data[middle] ^= 0xFF
+
+    recording = _damaged(recorded_run.path, tmp_path, flip)
     records = list(recording.records())
     assert records
     assert recording.damage is not None
@@ -81,17 +96,14 @@ def test_a_chunk_length_gone_wrong_is_corruption_not_a_cut(
     recorded_run: RecordedRun, tmp_path: Path
 ) -> None:
     # The walk jumps by the corrupted length to where no record starts.
-    data = bytearray(recorded_run.path.read_bytes())
-    with open(recorded_run.path, "rb") as f:
-        summary = make_reader(f).get_summary()
-    assert summary is not None
-    second = summary.chunk_indexes[1]
+    second = _chunks(recorded_run.path)[1]
     length_at = second.chunk_start_offset + 1  # opcode, then the record's length
-    length = int.from_bytes(data[length_at : length_at + 8], "little")
-    data[length_at : length_at + 8] = (length - 1).to_bytes(8, "little")
-    bad = tmp_path / "bad.mcap"
-    bad.write_bytes(bytes(data))
-    recording = Recording(bad)
+    length = int.from_bytes(recorded_run.path.read_bytes()[length_at : length_at + 8], "little")
+
+    def shorten(data: bytearray) -> None:
+        data[length_at : length_at + 8] = (length - 1).to_bytes(8, "little")
+
+    recording = _damaged(recorded_run.path, tmp_path, shorten)
     assert recording.damage is not None
     assert recording.damage.offset == second.chunk_start_offset + 9 + length - 1
     assert "no record starts here" in recording.damage.reason
