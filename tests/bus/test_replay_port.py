@@ -110,3 +110,30 @@ def test_which_packets_are_answered() -> None:
     assert expects_reply(broadcast_ping)
     assert not expects_reply(broadcast_write)
     assert expects_reply(b"\x01")  # not a packet: the recording says what came back
+
+
+def test_a_reply_cut_by_a_timeout_is_read_as_it_was_on_the_robot() -> None:
+    # On a real port a reply can straggle: part of it, the SDK gives up, the rest late.
+    _, events, _ = _record(lambda bus: [bus.ping(8).ok, bus.ping(8).ok])
+    (tx1, rx1, tx2, rx2) = events
+    assert (tx1[0], rx1[0], tx2[0], rx2[0]) == ("tx", "rx", "tx", "rx")
+    status = rx1[2]
+    straggling = [
+        ("tx", 1.0, tx1[2]),
+        ("rx", 1.001, status[:6]),
+        ("timeout", 1.010, b""),
+        ("rx", 1.012, status[6:]),  # late: cleared by the next transaction, never read
+        ("tx", 1.020, tx2[2]),
+        ("rx", 1.021, rx2[2]),
+    ]
+    clock = [0.0]
+    port = BusReplay(straggling, baudrate=1_000_000).open(lambda: clock[0])
+    bus = DxlBus(port)
+    first = bus.ping(8)
+    assert not first.ok  # part of a packet, then the timeout: corrupt, as on the robot
+    assert port.take_elapsed() == 1.010  # the wait cost what it cost on the recording
+    clock[0] = 1.010
+    assert bus.ping(8).ok
+    assert port.take_elapsed() == 1.021 - 1.010
+    assert port.unrecorded_timeouts == 0
+    assert port.mismatches == 0
