@@ -228,6 +228,8 @@ class _Checker:
         """How values are compared (:func:`compare`): device aliases, float tolerance."""
         self.compared = 0
         self.divergence: Divergence | None = None
+        self.stopped_at = math.inf
+        """Runtime time of the divergence that stopped the replay."""
         self.on_divergence: Callable[[], None] = lambda: None
 
     def _next(self, channel: str) -> Message | None:
@@ -265,6 +267,7 @@ class _Checker:
 
     def _diverged(self, kind: str, channel: str, t: float, what: str, a: str, b: str) -> None:
         self.divergence = Divergence(kind, channel, t, what, a, b)
+        self.stopped_at = self.now()
         self.on_divergence()
 
     def _missed(self, t: float) -> bool:
@@ -569,7 +572,7 @@ def replay(
                 divergence = mismatch
     return ReplayResult(
         path=path,
-        duration_s=min(result.end_time, end),
+        duration_s=min(result.end_time, end, math.inf if checker is None else checker.stopped_at),
         recorded_s=recorded_s,
         wall_s=wall_s,
         run=result,
