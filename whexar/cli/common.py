@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
+import shutil
+import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Final, TypeAlias
+from typing import Any, Final, TypeAlias
 
 from whexar.errors import UsageError
 from whexar.runtime.clock import wall_stamp
@@ -71,6 +74,34 @@ def default_recording(name: str) -> Path:
             "give --record FILE or --no-record"
         ) from None
     return folder / f"{Path(name).stem}-{wall_stamp()}.mcap"
+
+
+CLEAR_LINE: Final = "\r\x1b[K"
+"""Carriage return and erase to the end of the line: a status line is redrawn in place."""
+
+
+class StatusLine:
+    """A line on ``stream`` (default stderr) redrawn in place on a terminal, printed as
+    lines otherwise (:attr:`live` says which): the base of the progress lines."""
+
+    def __init__(self, stream: Any = None) -> None:
+        self.stream = stream if stream is not None else sys.stderr
+        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+
+    def fitted(self, text: str) -> str:
+        """``text`` to redraw: the line cleared first, cut to the terminal's width (a line
+        that wraps cannot be redrawn in place)."""
+        return CLEAR_LINE + text[: shutil.get_terminal_size().columns - 1]
+
+    def finish(self) -> None:
+        """End the live line so that what follows starts on a fresh one."""
+        if self.live:
+            self._write(CLEAR_LINE)
+
+    def _write(self, text: str) -> None:
+        with contextlib.suppress(OSError):  # a terminal that went away costs the line only
+            self.stream.write(text)
+            self.stream.flush()
 
 
 DEFAULT_LIVE_PORT: Final = 8765

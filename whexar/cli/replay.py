@@ -20,9 +20,7 @@ bad window).
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
-import shutil
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -30,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Final
 from whexar.cli.common import (
     DEFAULT_LIVE_PORT,
     Commands,
+    StatusLine,
     factor,
     instant,
     print_json,
@@ -45,19 +44,17 @@ FLOAT_TOLERANCE: Final = 1e-9
 """``--tolerance``'s default: :data:`whexar.record.replay.FLOAT_TOLERANCE` (not imported
 here, so that ``whexar --help`` stays fast)."""
 
-CLEAR_LINE: Final = "\r\x1b[K"
 LOG_EVERY_S: Final = 10.0
 """Replayed seconds between two progress lines when stderr is no terminal."""
 BAR: Final = 24
 """Width of the progress bar, in characters."""
 
 
-class Progress:
+class Progress(StatusLine):
     """The progress line: ``progress(t, end)`` callbacks of :func:`~whexar.record.replay.replay`."""
 
     def __init__(self, stream: Any = None) -> None:
-        self.stream = stream if stream is not None else sys.stderr
-        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+        super().__init__(stream)
         self._wall = monotonic()
         self._logged = -math.inf
 
@@ -79,20 +76,7 @@ class Progress:
             f"[{'#' * done}{'-' * (BAR - done)}] {t:6.1f}/{end:.1f} s  "
             f"{rate:5.1f}× real time  {left:4.0f} s left"
         )
-        if self.live:
-            width = shutil.get_terminal_size().columns - 1
-            return CLEAR_LINE + text[:width]
-        return text
-
-    def finish(self) -> None:
-        """End the live line so that what follows starts on a fresh one."""
-        if self.live:
-            self._write(CLEAR_LINE)
-
-    def _write(self, text: str) -> None:
-        with contextlib.suppress(OSError):
-            self.stream.write(text)
-            self.stream.flush()
+        return self.fitted(text) if self.live else text
 
 
 def summary(result: ReplayResult) -> dict[str, Any]:

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from whexar.cli.common import (
+    CLEAR_LINE,
     DEFAULT_LIVE_PORT,
     RECORDINGS,
     Commands,
@@ -48,9 +49,6 @@ COMMANDS_ACTOR = "commands"
 
 _BELOW = " " * 12
 """Indent of what follows an event line (a traceback), under the event's name."""
-
-CLEAR_LINE = "\r\x1b[K"
-"""Carriage return and erase to the end of the line: clears the keyboard's status line."""
 
 
 def _event_printer(prefix: str = "") -> Observer:
@@ -279,28 +277,18 @@ def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> 
     ``--no-record``."""
     import os
 
-    from whexar.record.replay import CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT
-    from whexar.record.writer import Recorder
-    from whexar.sim.urdf import build_urdf
+    from whexar.sim.run import run_recorder
 
     if args.no_record:
         path: Path | str = os.devnull
     else:
         path = args.record or default_recording(args.graph.stem)
     config, cfg = _robot_config(graph)
-    attachments: dict[str, str | bytes] = {
-        f"wiring{args.graph.suffix}": args.graph.read_bytes(),
-        # Every value the run used, defaults too: a replay finds out whether they changed.
-        EFFECTIVE_CONFIG_ATTACHMENT: cfg.model_dump_json(indent=1),
-    }
-    if config is not None:
-        attachments[CONFIG_ATTACHMENT] = config.read_bytes()
     metadata = {"kind": "run", "graph": str(args.graph), "command": " ".join(sys.argv)}
     if args.duration is not None:
         metadata["duration_s"] = repr(float(args.duration))
-    recorder = Recorder(path, metadata=metadata, attachments=attachments, live=live)
-    recorder.robot_description(build_urdf(cfg))
-    return recorder
+    wiring = {f"wiring{args.graph.suffix}": args.graph.read_bytes()}
+    return run_recorder(path, cfg, config, wiring, metadata, live)
 
 
 def _robot_config(graph: Graph) -> tuple[Path | None, RobotConfig]:

@@ -29,10 +29,8 @@ default a new file under ``recordings/`` named after the scenario and the date;
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
 import os
-import shutil
 import sys
 from collections import deque
 from collections.abc import Callable
@@ -43,6 +41,7 @@ from whexar.cli.common import (
     DEFAULT_LIVE_PORT,
     RECORDINGS,
     Commands,
+    StatusLine,
     default_recording,
     print_json,
     seconds,
@@ -70,7 +69,6 @@ SUMMARY_KEYS: Final = (
     "state_hash",
 )
 """The keys of ``whexar sim --json``, in order."""
-CLEAR_LINE: Final = "\r\x1b[K"
 REDRAW_S: Final = 0.1
 """Shortest wall time between two redraws of the progress line."""
 LOG_EVERY_S: Final = 10.0
@@ -88,14 +86,13 @@ def _seed(value: str) -> int:
     return number
 
 
-class Progress:
+class Progress(StatusLine):
     """The live progress line: an ``on_sample`` callback writing to ``stream``."""
 
     def __init__(self, scenario: Scenario, stream: Any = None) -> None:
         from whexar.sim.scenario import describe_command
 
-        self.stream = stream if stream is not None else sys.stderr
-        self.live = bool(getattr(self.stream, "isatty", lambda: False)())
+        super().__init__(stream)
         self.timeline = [(t, cmd, describe_command(cmd)) for t, cmd in scenario.commands]
         self.duration = scenario.duration_s
         self.mode = "walk"
@@ -122,9 +119,7 @@ class Progress:
             now = monotonic()
             if now - self._drawn_at >= REDRAW_S:
                 self._drawn_at = now
-                # A line that wraps cannot be redrawn in place: keep it within the terminal.
-                width = shutil.get_terminal_size().columns - 1
-                self._write(CLEAR_LINE + self.line(sample)[:width])
+                self._write(self.fitted(self.line(sample)))
         elif sample.t - self._logged_at >= LOG_EVERY_S:
             self._logged_at = sample.t
             self._write(self.line(sample) + "\n")
@@ -142,16 +137,6 @@ class Progress:
             f"t {s.t:6.1f}/{self.duration:g} s  x {s.x:+6.2f} y {s.y:+6.2f} m  "
             f"{speed:4.2f} m/s  {doing}  {rtf:4.1f}x  [{self.latest}]{event}{fallen}"
         )
-
-    def finish(self) -> None:
-        """End the live line so that what follows starts on a fresh one."""
-        if self.live:
-            self._write(CLEAR_LINE)
-
-    def _write(self, text: str) -> None:
-        with contextlib.suppress(OSError):  # a terminal that went away costs the line only
-            self.stream.write(text)
-            self.stream.flush()
 
 
 class Pace:

@@ -25,6 +25,15 @@ from whexar.robot import N_LEGS
 from whexar.runtime.checks import positive, real
 
 
+def quat_rpy(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    """Roll, pitch and yaw (rad) of unit quaternion (w, x, y, z), in this module's
+    convention R = R_z(yaw) · R_y(pitch) · R_x(roll); pitch is clamped at ±90°."""
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
 def _six(points: ArrayLike, what: str) -> FloatArray:
     array = np.asarray(points, dtype=np.float64)
     if array.ndim < 2 or array.shape[-2:] != (N_LEGS, 3):

@@ -60,6 +60,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import RobotConfig, parse_config
 from whexar.errors import ConfigError, UsageError
+from whexar.kinematics.body import quat_rpy
 from whexar.record.reader import Recording
 from whexar.robot import JOINT_NAMES, LEG_NAMES, N_JOINTS, N_LEGS, joint_index, leg_index
 
@@ -301,9 +302,7 @@ def _pose(t: float, value: Any) -> Pose | None:
     for tf in value.get("transforms", ()):
         if tf.get("parent_frame_id") == "world" and tf.get("child_frame_id") == "base":
             p, q = tf["translation"], tf["rotation"]
-            w, x, y, z = q["w"], q["x"], q["y"], q["z"]
-            roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-            pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+            roll, pitch, _ = quat_rpy(q["w"], q["x"], q["y"], q["z"])
             return Pose(t, float(p["x"]), float(p["y"]), float(p["z"]), roll, pitch)
     return None
 

@@ -286,6 +286,12 @@ class Recording:
         return self.metadata.get("whexar", {}).get("version")
 
     @property
+    def last_ns(self) -> int | None:
+        """Log time (ns) of the last readable message, from the chunks' headers (no
+        chunk is decompressed); ``None`` with none."""
+        return max((u.end for u in self._units if u.end != _NEVER), default=None)
+
+    @property
     def compression(self) -> str:
         """The chunks' compression (``zstd``, ``lz4``, ``""`` for none)."""
         return sorted(self._compressions)[0] if self._compressions else ""

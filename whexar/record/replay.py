@@ -38,6 +38,7 @@ replay runs at full speed); ``stop`` ends the replay early.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import math
@@ -56,20 +57,24 @@ from whexar.config import RobotConfig, load_config
 from whexar.errors import UsageError
 from whexar.record.encoding import LinkBytes, RecordingError
 from whexar.record.reader import Recording
+from whexar.record.writer import (
+    CONFIG_ATTACHMENT,
+    EFFECTIVE_CONFIG_ATTACHMENT,
+    URDF_ATTACHMENT,
+    Recorder,
+)
 from whexar.runtime.channels import ChannelStats
 from whexar.runtime.clock import monotonic, wait_until
-from whexar.runtime.devices import DEVICES
+from whexar.runtime.devices import DEVICES, DeviceKind
 from whexar.runtime.messages import Message
 from whexar.runtime.wiring import EVENTS_CHANNEL
 from whexar.sensors.replay import REPLAYED_BOARD, REPLAYED_I2C, BoardReplay, I2CReplay
 from whexar.testing.harness import Harness, RunResult, run_actors
 
 if TYPE_CHECKING:
-    from whexar.record.writer import LiveSink, Recorder
+    from whexar.record.writer import LiveSink
 
 __all__ = [
-    "CONFIG_ATTACHMENT",
-    "EFFECTIVE_CONFIG_ATTACHMENT",
     "FLOAT_TOLERANCE",
     "Divergence",
     "ReplayResult",
@@ -81,10 +86,6 @@ FLOAT_TOLERANCE: Final = 1e-9
 """Floats agree within this, relative to the larger (and at least this absolute): a replay
 on the recording's code agrees to the last bit; this forgives a time summed in another
 order."""
-CONFIG_ATTACHMENT: Final = "config.toml"
-"""The configuration file the recorded run read, if it read one."""
-EFFECTIVE_CONFIG_ATTACHMENT: Final = "robot-config.json"
-"""Every value of the recorded run's robot configuration (defaults included), as JSON."""
 LATE_S: Final = 0.1
 """A replay cut short by ``stop`` does not miss a recorded message stamped this little
 before ``stop``: it may have been published after it. Where a damaged recording ends,
@@ -449,10 +450,7 @@ def _end(rec: Recording) -> tuple[float, bool]:
     duration = None if meta is None else float(meta)
     if duration is not None and rec.damage is None:
         return duration, True
-    last = 0
-    for record in rec.records(decode=False):
-        last = max(last, record.log_time)
-    readable = last / 1e9
+    readable = (rec.last_ns or 0) / 1e9
     if duration is None:
         return readable, rec.damage is None
     return min(duration, readable), readable >= duration
@@ -547,7 +545,7 @@ def replay(
                 await h.sleep(math.inf)
 
         try:
-            with _Registered(devices):
+            with _registered(devices):
                 result = run_actors(
                     graph,
                     duration=end,
@@ -623,31 +621,20 @@ def _devices(
     return devices
 
 
-class _Registered:
-    """Registers each played-back device under its actor's name for the run."""
+_KINDS: Final[Mapping[type, DeviceKind[Any]]] = {
+    BusReplay: REPLAYED_BUS,
+    BoardReplay: REPLAYED_BOARD,
+    I2CReplay: REPLAYED_I2C,
+}
 
-    def __init__(self, devices: Mapping[str, Device]) -> None:
-        self.devices = devices
 
-    def __enter__(self) -> None:
-        for name, device in self.devices.items():
-            if isinstance(device, BusReplay):
-                DEVICES.register(REPLAYED_BUS, name, device)
-            elif isinstance(device, BoardReplay):
-                DEVICES.register(REPLAYED_BOARD, name, device)
-            else:
-                DEVICES.register(REPLAYED_I2C, name, device)
-
-    def __exit__(self, *exc: object) -> None:
-        for name, device in self.devices.items():
-            kind = (
-                REPLAYED_BUS
-                if isinstance(device, BusReplay)
-                else REPLAYED_BOARD
-                if isinstance(device, BoardReplay)
-                else REPLAYED_I2C
-            )
-            DEVICES.unregister(kind, name)
+@contextlib.contextmanager
+def _registered(devices: Mapping[str, Device]) -> Iterator[None]:
+    """Each played-back device registered under its actor's name for the run."""
+    with contextlib.ExitStack() as stack:
+        for name, device in devices.items():
+            stack.enter_context(DEVICES.registered(_KINDS[type(device)], name, device))
+        yield
 
 
 def _first_mismatch(
@@ -710,10 +697,8 @@ def _recorder(
 ) -> Recorder:
     import os
 
-    from whexar.record.writer import Recorder
-
     attachments: dict[str, str | bytes] = {"wiring.json": json.dumps(graph, indent=1)}
-    for name in ("robot.urdf", CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT):
+    for name in (URDF_ATTACHMENT, CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT):
         if name in rec.attachments:
             attachments[name] = rec.attachments[name].data
     recorder = Recorder(
@@ -723,7 +708,7 @@ def _recorder(
         attachments=attachments,
         live=live,
     )
-    urdf = rec.attachments.get("robot.urdf")
+    urdf = rec.attachments.get(URDF_ATTACHMENT)
     if urdf is not None:
         recorder.robot_description(urdf.data.decode("utf-8"))
     return recorder

@@ -113,7 +113,14 @@ from whexar.record.encoding import (
 from whexar.runtime.clock import monotonic
 from whexar.runtime.messages import MESSAGE_TYPES, Event, Message
 
-__all__ = ["FORMAT", "Recorder", "RecorderStats"]
+__all__ = [
+    "CONFIG_ATTACHMENT",
+    "EFFECTIVE_CONFIG_ATTACHMENT",
+    "FORMAT",
+    "URDF_ATTACHMENT",
+    "Recorder",
+    "RecorderStats",
+]
 
 WRITE_PERIOD_S: Final = 0.01
 """How often :meth:`Recorder.run` writes what is pending: about once per bus cycle."""
@@ -127,6 +134,13 @@ JOINT_STATES_PERIOD_S: Final = 1 / 30
 states at 109 Hz, plenty for Foxglove's 3D view; every servo state is recorded whole."""
 _JOINT_STATES_PERIOD_NS: Final = round(JOINT_STATES_PERIOD_S * 1e9)
 FORMAT: Final = "whexar-mcap/1"
+URDF_ATTACHMENT: Final = "robot.urdf"
+"""The robot's URDF (a simulation's recording)."""
+CONFIG_ATTACHMENT: Final = "config.toml"
+"""The configuration file the recorded run read, if it read one."""
+EFFECTIVE_CONFIG_ATTACHMENT: Final = "robot-config.json"
+"""Every value of the recorded run's robot configuration (defaults included), as JSON:
+a replay finds out whether they changed (:mod:`whexar.record.replay`)."""
 ROBOT_DESCRIPTION: Final = "/robot_description"
 """The topic of the robot's URDF (:meth:`Recorder.robot_description`)."""
 _DESCRIPTION_SCHEMA: Final = {

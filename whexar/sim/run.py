@@ -40,7 +40,7 @@ from whexar.actors.messages import (
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.bus.emulator.faults import FaultInjector, load_fault_plan
 from whexar.config import RobotConfig, load_config
-from whexar.kinematics.body import Stance, stance_feet
+from whexar.kinematics.body import Stance, quat_rpy, stance_feet
 from whexar.kinematics.leg import ik
 from whexar.robot import LEG_NAMES
 from whexar.runtime.clock import monotonic
@@ -178,14 +178,6 @@ def sim_graph(name: str, *, config: str | None = None) -> dict[str, Any]:
     )
 
 
-def _tilt(quat: tuple[float, float, float, float]) -> tuple[float, float, float]:
-    w, x, y, z = quat
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return roll, pitch, yaw
-
-
 def simulate(
     *,
     terrain: Terrain | None = None,
@@ -258,7 +250,7 @@ def simulate(
             elif isinstance(msg, Event) and not isinstance(msg, Quiet):
                 seen.event = f"{type(msg).__name__} @{msg.t:.1f}s"
         seen.entries = len(log)
-        roll, pitch, yaw = _tilt(world.base_quat)
+        roll, pitch, yaw = quat_rpy(*world.base_quat)
         x, y, z = world.base_position
         s = Sample(
             world.time,
@@ -379,26 +371,43 @@ def _recorder(
     metadata: Mapping[str, str] | None,
     live: LiveSink | None = None,
 ) -> Recorder:
-    """The recorder of a run: its configuration, wiring and URDF attached."""
-    from whexar.record.replay import CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT
-    from whexar.record.writer import Recorder
+    """The recorder of a simulated run: its wiring and URDF attached too."""
+    from whexar.record.writer import URDF_ATTACHMENT
     from whexar.sim.urdf import build_urdf
 
-    attachments: dict[str, str | bytes] = {
-        "wiring.json": json.dumps(graph, indent=1),
-        "robot.urdf": build_urdf(cfg),
-        # Every value the run used, defaults too: a replay finds out whether they changed.
+    return run_recorder(
+        path,
+        cfg,
+        config,
+        {"wiring.json": json.dumps(graph, indent=1), URDF_ATTACHMENT: build_urdf(cfg)},
+        {"robot": cfg.robot.name, "kind": "simulation", **(metadata or {})},
+        live,
+    )
+
+
+def run_recorder(
+    path: str | Path,
+    cfg: RobotConfig,
+    config: str | Path | None,
+    attachments: Mapping[str, str | bytes],
+    metadata: Mapping[str, str],
+    live: LiveSink | None = None,
+) -> Recorder:
+    """A recorder for a run of robot ``cfg`` (read from file ``config``, ``None`` for the
+    built-in): ``attachments`` and ``metadata`` as given, plus what a replay needs —
+    the configuration file and every value the run used — and the URDF on
+    ``/robot_description``. ``whexar sim`` and ``whexar run`` both record through it."""
+    from whexar.record.writer import CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT, Recorder
+    from whexar.sim.urdf import build_urdf
+
+    attached: dict[str, str | bytes] = {
+        **attachments,
         EFFECTIVE_CONFIG_ATTACHMENT: cfg.model_dump_json(indent=1),
     }
     if config is not None:
-        attachments[CONFIG_ATTACHMENT] = Path(config).read_bytes()
-    recorder = Recorder(
-        path,
-        metadata={"robot": cfg.robot.name, "kind": "simulation", **(metadata or {})},
-        attachments=attachments,
-        live=live,
-    )
-    recorder.robot_description(str(attachments["robot.urdf"]))
+        attached[CONFIG_ATTACHMENT] = Path(config).read_bytes()
+    recorder = Recorder(path, metadata=metadata, attachments=attached, live=live)
+    recorder.robot_description(build_urdf(cfg))  # built once per configuration
     return recorder
 
 
@@ -406,6 +415,7 @@ __all__ = [
     "SAMPLE_PERIOD_S",
     "Sample",
     "SimResult",
+    "run_recorder",
     "seated_angles",
     "sim_graph",
     "simulate",
