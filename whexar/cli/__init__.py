@@ -33,7 +33,20 @@ import sys
 from collections.abc import Sequence
 
 from whexar import __version__
-from whexar.cli import bench, bus, config, kin, log, model, plot, replay, run, sensors, sim
+from whexar.cli import (
+    bench,
+    bus,
+    campaign,
+    config,
+    kin,
+    log,
+    model,
+    plot,
+    replay,
+    run,
+    sensors,
+    sim,
+)
 from whexar.cli.common import Handler
 from whexar.errors import ConfigError, UsageError
 
@@ -45,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"whexar {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in (config, kin, bench, run, bus, sensors, model, sim, log, plot, replay):
+    for group in (config, kin, bench, run, bus, sensors, model, sim, campaign, log, plot, replay):
         group.add_commands(commands)
     return parser
 

@@ -1,0 +1,1 @@
+"""Single servo failures as a campaign: their metrics and their table."""

@@ -1,0 +1,235 @@
+"""What a campaign keeps of each run: named metrics computed from a :class:`SimResult`.
+
+Theory of operation
+-------------------
+A metric is a function of a finished run and a measuring :class:`Window`
+(seconds of simulated time, from the campaign's ``measure`` keys) that returns
+one plain value: a number, a bool, a string or ``None`` (not defined for this
+run: a cost of transport when the robot did not move). Metrics register
+themselves by name with :func:`metric`; :func:`registry` returns them all, the
+generic ones of this module and those of the shipped campaigns'
+modules (:data:`METRIC_MODULES`), imported on first use so that a worker
+process has the same table as the parent.
+
+Every metric is deterministic: it reads the run's samples and message log,
+both on virtual time, never the wall clock. That is what lets a campaign give
+the same rows, bit for bit, on local processes and on Ray.
+"""
+
+from __future__ import annotations
+
+import importlib
+import itertools
+import math
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Final
+
+from whexar.actors.messages import LocomotionState, ServoStates
+from whexar.runtime.messages import ActorStopped, StopRequested
+from whexar.sim.run import FALLEN_TILT_RAD, Quiet, travelled
+
+if TYPE_CHECKING:
+    from whexar.sim.run import Sample, SimResult
+
+Value = float | int | bool | str | None
+"""What a metric returns: one cell of the results table."""
+
+G: Final = 9.81
+"""Gravitational acceleration (m/s²) of the cost of transport, as in thesis 6.8.1."""
+METRIC_MODULES: Final = ("whexar.campaign.experiments", "whexar.campaign.failures")
+"""Modules whose metrics :func:`registry` imports: the shipped campaigns' own."""
+
+
+@dataclass(frozen=True)
+class Window:
+    """The stretch of a run a metric measures: ``from_s`` to ``to_s`` s (``None``: the end)."""
+
+    from_s: float = 0.0
+    to_s: float | None = None
+
+    def samples(self, result: SimResult) -> list[Sample]:
+        """The run's samples inside the window (its ends included)."""
+        end = math.inf if self.to_s is None else self.to_s
+        return [s for s in result.samples if self.from_s - 1e-9 <= s.t <= end + 1e-9]
+
+    def contains(self, t: float) -> bool:
+        """Whether time ``t`` lies inside the window."""
+        return self.from_s - 1e-9 <= t and (self.to_s is None or t <= self.to_s + 1e-9)
+
+
+MetricFn = Callable[["SimResult", Window], Value]
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A named metric: its unit (``""`` for none), what it is, how it is computed."""
+
+    name: str
+    unit: str
+    description: str
+    fn: MetricFn
+
+
+_REGISTRY: dict[str, Metric] = {}
+_loaded = False
+
+
+def metric(name: str, unit: str, description: str) -> Callable[[MetricFn], MetricFn]:
+    """Register the decorated function as metric ``name``."""
+
+    def register(fn: MetricFn) -> MetricFn:
+        if name in _REGISTRY and _REGISTRY[name].fn is not fn:
+            raise ValueError(f"metric {name!r} is registered twice")
+        _REGISTRY[name] = Metric(name, unit, description, fn)
+        return fn
+
+    return register
+
+
+def registry() -> dict[str, Metric]:
+    """Every metric, by name: this module's and those of :data:`METRIC_MODULES`."""
+    global _loaded
+    if not _loaded:
+        for module in METRIC_MODULES:
+            importlib.import_module(module)
+        _loaded = True
+    return dict(sorted(_REGISTRY.items()))
+
+
+def compute(names: Sequence[str], result: SimResult, window: Window) -> dict[str, Value]:
+    """The metrics ``names`` of one run, in that order."""
+    table = registry()
+    return {name: table[name].fn(result, window) for name in names}
+
+
+# --------------------------------------------------------------------------- the generic ones
+
+
+def _summary(key: str) -> MetricFn:
+    def fn(result: SimResult, window: Window) -> Value:
+        value = result.summary()[key]
+        return value if value is None or isinstance(value, int | float | str) else str(value)
+
+    return fn
+
+
+for _key, _unit, _text in (
+    ("distance_m", "m", "length of the body's path over the whole run"),
+    ("mean_speed_mps", "m/s", "distance over the time spent walking or riding"),
+    ("energy_j", "J", "electric energy of the whole run"),
+    ("cost_of_transport", "", "E / (m g d) over the whole run"),
+    ("min_stability_margin_m", "m", "least static stability margin while on the legs"),
+    ("gait_changes", "", "gait changes the coordinator made"),
+    ("falls", "", "times the body tilted past 60°"),
+):
+    metric(_key, _unit, _text)(_summary(_key))
+
+
+@metric("window_s", "s", "length of the measuring window")
+def window_s(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    return s[-1].t - s[0].t if len(s) > 1 else 0.0
+
+
+@metric("speed_mps", "m/s", "path length over the window, over its duration")
+def speed_mps(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    if len(s) < 2 or s[-1].t <= s[0].t:
+        return None
+    return travelled(s) / (s[-1].t - s[0].t)
+
+
+@metric("displacement_m", "m", "straight-line distance from the window's start to its end")
+def displacement_m(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    return math.hypot(s[-1].x - s[0].x, s[-1].y - s[0].y) if s else None
+
+
+@metric("mean_power_w", "W", "mean electric power over the window")
+def mean_power_w(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    if len(s) < 2:
+        return None
+    energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(s))
+    return energy / (s[-1].t - s[0].t)
+
+
+@metric(
+    "mean_current_a",
+    "A",
+    "total servo current, thesis eq. 6.1–6.3: each servo's mean |Present Current| over the "
+    "window, summed over the servos the bus reads",
+)
+def mean_current_a(result: SimResult, window: Window) -> Value:
+    sums: dict[int, float] = {}
+    counts: dict[int, int] = {}
+    for msg in result.run.log.messages(of=ServoStates):
+        if not window.contains(msg.t):
+            continue
+        for j in msg.joints:
+            if j.current_a is not None:
+                sums[j.servo_id] = sums.get(j.servo_id, 0.0) + abs(j.current_a)
+                counts[j.servo_id] = counts.get(j.servo_id, 0) + 1
+    return sum(sums[k] / counts[k] for k in sums) if sums else None
+
+
+@metric("window_cost_of_transport", "", "P / (m g v) over the window (thesis eq. 6.4)")
+def window_cost_of_transport(result: SimResult, window: Window) -> Value:
+    power, speed = mean_power_w(result, window), speed_mps(result, window)
+    if not isinstance(power, float) or not isinstance(speed, float) or speed < 0.01:
+        return None
+    return power / (result.mass_kg * G * speed)
+
+
+@metric("max_tilt_deg", "°", "largest |roll| or |pitch| of the body over the window")
+def max_tilt_deg(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    return max(math.degrees(max(abs(x.roll), abs(x.pitch))) for x in s) if s else None
+
+
+@metric("fell", "", "whether the body tilted past 60° inside the window")
+def fell(result: SimResult, window: Window) -> Value:
+    return any(max(abs(x.roll), abs(x.pitch)) > FALLEN_TILT_RAD for x in window.samples(result))
+
+
+@metric("final_x_m", "m", "body centre x at the window's end")
+def final_x_m(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    return s[-1].x if s else None
+
+
+@metric("final_y_m", "m", "body centre y at the window's end")
+def final_y_m(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    return s[-1].y if s else None
+
+
+@metric("final_z_m", "m", "body centre height at the window's end")
+def final_z_m(result: SimResult, window: Window) -> Value:
+    s = window.samples(result)
+    return s[-1].z if s else None
+
+
+@metric("final_activity", "", "what the coordinator was doing at the window's end")
+def final_activity(result: SimResult, window: Window) -> Value:
+    states = [m for m in result.run.log.messages(of=LocomotionState) if window.contains(m.t)]
+    return f"{states[-1].activity} {states[-1].mode}/{states[-1].gait}" if states else None
+
+
+ROUTINE: Final = (*Quiet, ActorStopped, StopRequested)
+"""Events every run has (start-up, the end): left out of :func:`events`."""
+
+
+@metric("events", "", "the run's events other than routine ones, counted by type")
+def events(result: SimResult, window: Window) -> Value:
+    counts = Counter(
+        type(e).__name__
+        for e in result.events
+        if window.contains(e.t) and not isinstance(e, ROUTINE)
+    )
+    return " ".join(f"{name}×{n}" for name, n in sorted(counts.items()))
+
+
+__all__ = ["METRIC_MODULES", "Metric", "Value", "Window", "compute", "metric", "registry"]
