@@ -249,6 +249,7 @@ def _ray(
     try:
         task: Any = ray.remote(num_cpus=1, max_retries=0)(run_one)
         cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))  # type: ignore[no-untyped-call]
+        warm_ray_workers(cpus)
         queue = list(reversed(runs))
         pending: dict[Any, tuple[RunSpec, float]] = {}
         while queue or pending:
@@ -272,6 +273,26 @@ def _ray(
     finally:
         if started_here:
             ray.shutdown()
+
+
+def _ready() -> int:
+    """A Ray task that only loads what a run needs (whexar, MuJoCo): a started worker."""
+    import whexar.sim.run  # noqa: F401 - imported for its cost, paid here once
+
+    return os.getpid()
+
+
+def warm_ray_workers(count: int) -> None:
+    """Start ``count`` Ray workers and import whexar in them before the first run.
+
+    A worker Ray starts for the first task pays about a second to start and import
+    whexar and MuJoCo; that is the campaign's start-up, like the local pool's
+    spawn, not a run's cost, and the runs' timeouts must not count it.
+    """
+    import ray
+
+    ready: Any = ray.remote(num_cpus=1, max_retries=0)(_ready)
+    ray.get([ready.remote() for _ in range(count)])
 
 
 # --------------------------------------------------------------------------- the campaign
@@ -387,4 +408,5 @@ __all__ = [
     "read_rows",
     "run_campaign",
     "run_one",
+    "warm_ray_workers",
 ]

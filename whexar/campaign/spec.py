@@ -29,9 +29,10 @@ path (:func:`parse_path`):
 
 * into the base scenario's document (:class:`~whexar.sim.scenario.ScenarioFile`):
   ``duration_s``, ``seed``, ``terrain``, ``terrain.slope_deg`` (a built-in
-  terrain name becomes ``{base = name}`` first), ``start.yaw_deg``, ``commands``,
-  ``commands[1].vx_m_s``, ``faults`` (a path from the campaign file, or an
-  inline fault plan table), ``faults.faults[0].ids``, ``sensor_faults``;
+  terrain name becomes ``{base = name}`` first, ``slope15`` ``{slope_deg = 15}``),
+  ``start.yaw_deg``, ``commands``, ``commands[1].vx_m_s``, ``faults`` (a path
+  from the campaign file, or an inline fault plan table), ``faults.faults[0].ids``,
+  ``sensor_faults``;
 * ``config.<section>.<key>…`` into the robot configuration: the base
   scenario's configuration file, or the defaults, with the values set;
 * ``measure.from_s`` and ``measure.to_s``, the metrics' window;
@@ -64,6 +65,7 @@ import tomli_w
 from pydantic import Field, ValidationError
 
 from whexar.campaign.metrics import Window, registry
+from whexar.config import parse_config
 from whexar.errors import ConfigError, Problem
 from whexar.runtime.schema import (
     NonNegative,
@@ -460,12 +462,8 @@ def _run_spec(
                         raise ValueError("the base scenario has no fault plan: set faults first")
                     set_path(faults, parts[1:], value)
             elif head in _SCENARIO_KEYS:
-                if (
-                    head == "terrain"
-                    and len(parts) > 1
-                    and not isinstance(scenario.get("terrain"), dict)
-                ):
-                    scenario["terrain"] = {"base": scenario.get("terrain", "flat")}
+                if head == "terrain" and len(parts) > 1:
+                    scenario["terrain"] = _terrain_table(scenario.get("terrain", "flat"))
                 set_path(scenario, parts, value)
             else:
                 raise ValueError(_ALLOWED_KEYS)
@@ -493,6 +491,17 @@ def _run_spec(
     return _with_key(run)
 
 
+def _terrain_table(terrain: object) -> object:
+    """A terrain as a table its features can be set in: a built-in name is its base, and
+    ``slope<deg>`` the flat with that slope, so that ``terrain.slope_deg`` replaces it."""
+    if not isinstance(terrain, str):
+        return terrain
+    m = re.fullmatch(r"slope(\d+(?:\.\d+)?)", terrain)
+    if m is not None:
+        return {"base": "flat", "slope_deg": float(m.group(1))}
+    return {"base": terrain}
+
+
 def _faults_value(value: Any, folder: Path) -> dict[str, Any]:
     if isinstance(value, dict):
         return copy.deepcopy(value)
@@ -517,6 +526,15 @@ def _check_runs(runs: Sequence[RunSpec], problems: list[Problem]) -> None:
     """Build every run in a scratch folder: its scenario, configuration and fault plan."""
     with tempfile.TemporaryDirectory(prefix="whexar-campaign-") as scratch:
         for run in runs:
+            if run.config is not None:
+                try:  # checked here first, so that its problems are named config.<key>
+                    parse_config(run.config)
+                except ConfigError as exc:
+                    problems.extend(
+                        Problem(f"run {run.id}: config.{p.path}", p.value, p.allowed)
+                        for p in exc.problems
+                    )
+                    continue
             try:
                 scenario = run.build(Path(scratch))
             except ConfigError as exc:

@@ -134,8 +134,12 @@ def _unwrap(annotation: object) -> object:
     if origin is typing.Annotated:
         return _unwrap(typing.get_args(annotation)[0])
     if origin in (typing.Union, types.UnionType):
-        members = [a for a in typing.get_args(annotation) if a is not type(None)]
-        return _unwrap(members[0]) if len(members) == 1 else annotation
+        members = [_unwrap(a) for a in typing.get_args(annotation) if a is not type(None)]
+        if len(members) == 1:
+            return members[0]
+        # A name or a table (a scenario's terrain, bus.plan): keys can only be the table's.
+        models = [m for m in members if isinstance(m, type) and issubclass(m, BaseModel)]
+        return models[0] if len(models) == 1 else annotation
     return annotation
 
 
