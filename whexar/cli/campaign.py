@@ -79,14 +79,22 @@ def print_problems(exc: ConfigError) -> None:
         print(f"  {problem}", file=sys.stderr)
 
 
+def _shown(path: Path, folder: Path) -> str:
+    try:
+        return str(path.relative_to(folder))
+    except ValueError:
+        return str(path)
+
+
 def summary_lines(result: CampaignResult) -> list[str]:
     """What the terminal shows at the end: counts, where the files are, the failures."""
     rows = result.rows
     failed = result.failed
+    files = ", ".join(_shown(p, result.out_dir) for p in result.files)
     lines = [
         f"campaign {result.campaign.name}: {len(rows)} runs, {len(rows) - len(failed)} ok, "
         f"{len(failed)} failed, {duration_text(result.wall_s)}",
-        f"results: {result.out_dir}/ ({', '.join(p.name for p in result.files)})",
+        f"results: {result.out_dir}/ ({files})",
     ]
     lines += [f"  failed: run {r.id} {r.label}: {r.error}" for r in failed]
     return lines
