@@ -24,6 +24,14 @@ default a new file under ``recordings/`` named after the scenario and the date;
 ``--no-record`` records nothing. The summary ends with the recording's path.
 ``--live [PORT]`` serves what is recorded to the Foxglove app
 (:mod:`whexar.record.live`) and paces the run to real time.
+
+``--experiments`` runs the thesis's experiments instead (the campaign
+``config/campaigns/experiments.toml`` on one worker process per CPU, a
+progress line on stderr): the report goes into ``--report DIR`` (default
+:data:`EXPERIMENTS_REPORT`), the table of the simulation's figures beside the
+thesis's is printed, or with ``--json`` one object
+``{"experiments": [{"name", "unit", "thesis", "sim"}, …]}``
+(:mod:`whexar.campaign.experiments`).
 """
 
 from __future__ import annotations
@@ -74,6 +82,10 @@ REDRAW_S: Final = 0.1
 LOG_EVERY_S: Final = 10.0
 """Simulated seconds between two progress lines when stderr is no terminal."""
 FALLEN_TILT_RAD: Final = math.radians(60.0)
+EXPERIMENTS: Final = "experiments"
+"""The shipped campaign ``--experiments`` runs (``config/campaigns/experiments.toml``)."""
+EXPERIMENTS_REPORT: Final = Path("experiments-report")
+"""Where ``--experiments`` writes its report unless ``--report`` says otherwise."""
 
 
 def _seed(value: str) -> int:
@@ -201,9 +213,47 @@ def summary_text(name: str, summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _experiments(args: argparse.Namespace) -> int:
+    """``--experiments``: the thesis's experiments as a campaign, the table of figures."""
+    from whexar.campaign import load_campaign, run_campaign
+    from whexar.campaign.experiments import figures, table_text
+    from whexar.cli.campaign import (
+        FAILED_STATUS,
+        CampaignProgress,
+        print_problems,
+        summary_lines,
+    )
+
+    alone = ("video", "view", "live", "record", "duration", "seed")
+    given = [f"--{name}" for name in alone if getattr(args, name) not in (None, False)]
+    if given:
+        raise UsageError(f"--experiments runs its own campaign: drop {', '.join(given)}")
+    try:
+        campaign = load_campaign(EXPERIMENTS)
+    except ConfigError as exc:
+        print_problems(exc)
+        return 1
+    out = args.report if args.report is not None else EXPERIMENTS_REPORT
+    progress = CampaignProgress(campaign.name)
+    try:
+        result = run_campaign(campaign, out, progress=progress)
+    finally:
+        progress.finish()
+    for line in summary_lines(result):
+        print(line, file=sys.stderr)
+    found = figures(result.rows)
+    if args.json:
+        print_json({"experiments": [f.to_json() for f in found]})
+    else:
+        print(table_text(found))
+    return FAILED_STATUS if result.failed else 0
+
+
 def _sim(args: argparse.Namespace) -> int:
     from whexar.sim.scenario import load_scenario
 
+    if args.experiments:
+        return _experiments(args)
     if args.view and args.video:
         raise UsageError("--view and --video need different OpenGL back ends: choose one")
     if args.view and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
@@ -300,7 +350,19 @@ def add_commands(commands: Commands) -> None:
         metavar="N",
         help="seed of the scenario's random terrain features (default: the scenario's)",
     )
-    sim.add_argument("--report", type=Path, metavar="DIR", help="write PNG plots and a summary")
+    sim.add_argument(
+        "--report",
+        type=Path,
+        metavar="DIR",
+        help="write PNG plots and a summary (with --experiments: the experiments' report, "
+        f"default {EXPERIMENTS_REPORT}/)",
+    )
+    sim.add_argument(
+        "--experiments",
+        action="store_true",
+        help="run the thesis's experiments (config/campaigns/experiments.toml) and print "
+        "the simulation's figures beside the thesis's",
+    )
     sim.add_argument("--video", type=Path, metavar="FILE.mp4", help="render the run (H.264)")
     sim.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     sim.add_argument(
