@@ -301,3 +301,34 @@ def test_a_slope_named_by_the_base_is_replaced_by_a_slope_variation() -> None:
         {"base": "flat", "slope_deg": 0},
         {"base": "flat", "slope_deg": 20},
     ]
+
+
+def test_a_campaign_that_keeps_recordings_writes_one_per_run(tmp_path: Path) -> None:
+    from whexar.record.reader import Recording
+
+    campaign = parse_campaign({"scenario": "wheels", "record": True, "grid": {"duration_s": [0.5]}})
+    row = run_one(campaign.runs[0], str(tmp_path))
+    assert row.outcome == "ok"
+    recording = Recording(tmp_path / "0000.mcap")
+    assert recording.last_ns is not None
+    assert recording.last_ns > 0.4e9
+
+
+def test_the_docs_list_every_metric() -> None:
+    from whexar.campaign.results import metrics_table
+
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "campaigns.md").read_text()
+    assert metrics_table() in docs, "docs/campaigns.md: paste results.metrics_table() again"
+
+
+def test_the_readme_and_docs_examples_load() -> None:
+    import re
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    for doc in ("README.md", "docs/campaigns.md"):
+        text = (root / doc).read_text()
+        blocks = [b for b in re.findall(r"```toml\n(.*?)```", text, re.S) if "scenario =" in b]
+        assert blocks, doc
+        for block in blocks:
+            assert parse_campaign(tomllib.loads(block), doc).runs

@@ -160,7 +160,8 @@ def mean_power_w(result: SimResult, window: Window) -> Value:
     "mean_current_a",
     "A",
     "total servo current, thesis eq. 6.1–6.3: each servo's mean |Present Current| over the "
-    "window, summed over the servos the bus reads",
+    "window, summed over the servos the bus reads (the default read plan reads the coxa, "
+    "femur, tibia and tarsus: 24 servos; total_current_a has all 42)",
 )
 def mean_current_a(result: SimResult, window: Window) -> Value:
     sums: dict[int, float] = {}

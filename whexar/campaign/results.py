@@ -208,9 +208,19 @@ def _plot(result: CampaignResult) -> Path | None:
     return path
 
 
+def metrics_table() -> str:
+    """Every registered metric as a Markdown table: name, unit, where it is defined, what it is
+    (``docs/campaigns.md`` carries it; a test keeps the two the same)."""
+    lines = ["| metric | unit | module | what |", "|---|---|---|---|"]
+    for m in registry().values():
+        module = m.fn.__module__.rsplit(".", 1)[-1]
+        lines.append(f"| `{m.name}` | {m.unit or '–'} | {module} | {m.description} |")
+    return "\n".join(lines)
+
+
 def _legend(key: str) -> str:
     rest = json.loads(key)
     return ", ".join(f"{k}={shown(v)}" for k, v in rest.items()) or "all"
 
 
-__all__ = ["REPORT_WRITERS", "shown", "write_results"]
+__all__ = ["REPORT_WRITERS", "metrics_table", "shown", "write_results"]
