@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from whexar.actors.coordinator import CONTACT_GRID_M
 from whexar.actors.leg import FLIPPED_TROCHANTER, HALF_TICK_RAD
 from whexar.actors.messages import (
     BodyMotion,
@@ -492,6 +493,14 @@ def expected_wheels(
     return wheel_turn(contacts, CIRCLE_R, speed=vx, coxa=coxa, wheel_radius=WHEEL_RADIUS)
 
 
+def contact(state: LegState) -> tuple[float, float, float]:
+    """Where the coordinator puts a wheel: the measured foot on its grid, else the commanded."""
+    m, g = state.measured_foot, CONTACT_GRID_M
+    if m is None:
+        return state.foot
+    return (round(m[0] / g) * g, round(m[1] / g) * g, round(m[2] / g) * g)
+
+
 def wrap(angle: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
     return np.asarray((angle + math.pi) % (2 * math.pi) - math.pi)
 
@@ -510,7 +519,7 @@ def test_ride_wheels_follow_the_equations(name: str) -> None:
     goals = leg_goals(r)
     legs = leg_states(r)
     for t in times:
-        contacts = np.array([legs[t][leg].foot for leg in range(N_LEGS)])
+        contacts = np.array([contact(legs[t][leg]) for leg in range(N_LEGS)])
         coxa = np.array([goal(goals[t][leg], COXA).position_rad for leg in range(N_LEGS)])
         want = expected_wheels(name, contacts, coxa)
         general = wheel_twist(contacts, *RIDES[name], coxa=coxa, wheel_radius=WHEEL_RADIUS)

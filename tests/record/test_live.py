@@ -11,6 +11,7 @@ from typing import Any
 import websockets
 from websockets.typing import Subprotocol
 
+from whexar.cli.sim import Pace
 from whexar.record.live import LAYOUT_FILE, LiveView, layout_json
 from whexar.sim.run import simulate
 from whexar.testing.walk import command
@@ -88,7 +89,10 @@ def test_a_live_run_reaches_a_client_and_nothing_the_client_sends_reaches_the_ru
         client = Client(live.url)
         client.start()
         assert client.connected.wait(10)
-        served = simulate(commands=COMMANDS, duration=2.0, live=live)
+        # Paced to real time, as `whexar sim --live` is: a client subscribes to a topic when
+        # it is advertised, and what is published before that is not for it. Unpaced on a
+        # busy machine, the whole run could be over before the client had subscribed.
+        served = simulate(commands=COMMANDS, duration=2.0, live=live, on_sample=Pace())
         client.stop.set()
         client.join(10)
     assert client.info["op"] == "serverInfo"

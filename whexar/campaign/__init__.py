@@ -4,6 +4,9 @@ A campaign file (:mod:`whexar.campaign.spec`) names a base scenario, the
 variations to run it with and the metrics to keep (:mod:`whexar.campaign.metrics`);
 :func:`run_campaign` (:mod:`whexar.campaign.runner`) runs them and writes one row
 per run (:mod:`whexar.campaign.results`). ``whexar campaign FILE`` is the command.
+
+May import: :mod:`whexar.sim` and everything below it; Ray only inside the functions
+that use it (an optional extra); never the command line or the benches.
 """
 
 from whexar.campaign.metrics import Metric, Value, Window, metric, registry
