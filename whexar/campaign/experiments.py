@@ -449,9 +449,12 @@ STEEPEST_WHY: Final = Why(
     "atan 0.9 = 42°. The thesis's tyres on its wooden board gripped better than that.",
 )
 CIRCLE_WHY: Final = Why(
-    higher="We have not found the cause. The wheels seem to fight each other on the circle "
-    "(see the current beside): their speeds or headings disagree with the circle's "
-    "radius, and the tyres scrub sideways, so the centre of the circle wanders.",
+    higher="The wheels fight each other through the legs on the circle (see the current "
+    "beside), and the centre of the circle wanders. Part of it is mended: the wheels were "
+    "driven for the commanded feet, centimetres outward of where the sagging legs put them "
+    "(the return error fell to a third when they were driven for the measured feet). The "
+    "rest we have not found: the current still grows lap after lap, while the legs' feet "
+    "drift sideways by centimetres.",
     lower="The simulated wheels roll without slip on an even floor; the real ones slipped "
     "and the inner legs strained (6.5.2).",
 )
