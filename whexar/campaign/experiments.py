@@ -58,8 +58,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final, Protocol
 
-from whexar.actors.messages import LegState, ServoStates
-from whexar.campaign.metrics import G, Value, Window, metric
+from whexar.actors.messages import LegState
+from whexar.campaign.metrics import G, Value, Window, metric, servo_currents
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import JOINT_NAMES
 from whexar.sim.run import FALLEN_TILT_RAD
@@ -335,16 +335,8 @@ def fell_while(result: SimResult, window: Window) -> Value:
 
 def _joint_current(joint: int) -> Callable[[SimResult, Window], Value]:
     def fn(result: SimResult, window: Window) -> Value:
-        sums: dict[int, float] = {}
-        counts: dict[int, int] = {}
-        for msg in result.run.log.messages(of=ServoStates):
-            if not window.contains(msg.t):
-                continue
-            for j in msg.joints:
-                if j.joint == joint and j.current_a is not None:
-                    sums[j.servo_id] = sums.get(j.servo_id, 0.0) + abs(j.current_a)
-                    counts[j.servo_id] = counts.get(j.servo_id, 0) + 1
-        return sum(sums[k] / counts[k] for k in sums) if sums else None
+        currents = servo_currents(result, window, joint)
+        return sum(currents.values()) if currents else None
 
     return fn
 

@@ -57,11 +57,11 @@ from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final, Protocol
+from typing import TYPE_CHECKING, Any, Final, Protocol, cast
 
 from whexar.actors.messages import BusLost, LocomotionState, ServoDegraded, ServoFault, SwingEnded
 from whexar.bus.emulator.faults import FaultInjector
-from whexar.campaign.metrics import Value, Window, metric
+from whexar.campaign.metrics import MetricFn, Value, Window, metric
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.messages import ActorStopped, SafeStop, StopRequested
@@ -228,28 +228,26 @@ def _speed(samples: Sequence[Sample]) -> float | None:
 # --------------------------------------------------------------------------- the metrics
 
 
-@metric("failed_servo", "", "the servo the run silenced (from its fault plan, else the bus)")
-def failed_servo(result: SimResult, window: Window) -> Value:
-    f = failure(result)
-    return None if f is None else f.servo_id
+def _failure_field(attr: str) -> MetricFn:
+    def fn(result: SimResult, window: Window) -> Value:
+        f = failure(result)
+        return None if f is None else cast(Value, getattr(f, attr))
+
+    return fn
 
 
-@metric("failed_leg", "", "the failed servo's leg (RF, LF, RM, LM, RR, LR)")
-def failed_leg(result: SimResult, window: Window) -> Value:
-    f = failure(result)
-    return None if f is None else f.leg_name
-
-
-@metric("failed_joint", "", "the failed servo's joint (coxa … wheel)")
-def failed_joint(result: SimResult, window: Window) -> Value:
-    f = failure(result)
-    return None if f is None else f.joint_name
-
-
-@metric("failed_at_s", "s", "when the servo went silent")
-def failed_at_s(result: SimResult, window: Window) -> Value:
-    f = failure(result)
-    return None if f is None else f.t
+for _name, _attr, _unit, _text in (
+    (
+        "failed_servo",
+        "servo_id",
+        "",
+        "the servo the run silenced (from its fault plan, else the bus)",
+    ),
+    ("failed_leg", "leg_name", "", "the failed servo's leg (RF, LF, RM, LM, RR, LR)"),
+    ("failed_joint", "joint_name", "", "the failed servo's joint (coxa … wheel)"),
+    ("failed_at_s", "t", "s", "when the servo went silent"),
+):
+    metric(_name, _unit, _text)(_failure_field(_attr))
 
 
 @metric("detected_after_s", "s", "from the failure to the bus leaving the servo out (degraded)")

@@ -164,16 +164,23 @@ def mean_power_w(result: SimResult, window: Window) -> Value:
     "femur, tibia and tarsus: 24 servos; total_current_a has all 42)",
 )
 def mean_current_a(result: SimResult, window: Window) -> Value:
+    currents = servo_currents(result, window)
+    return sum(currents.values()) if currents else None
+
+
+def servo_currents(result: SimResult, window: Window, joint: int | None = None) -> dict[int, float]:
+    """Each servo's current over the window, thesis eq. 6.1: the mean |Present Current| the
+    bus read, by servo ID; ``joint`` keeps one joint of every leg (0 coxa … 6 wheel)."""
     sums: dict[int, float] = {}
     counts: dict[int, int] = {}
     for msg in result.run.log.messages(of=ServoStates):
         if not window.contains(msg.t):
             continue
         for j in msg.joints:
-            if j.current_a is not None:
+            if j.current_a is not None and (joint is None or j.joint == joint):
                 sums[j.servo_id] = sums.get(j.servo_id, 0.0) + abs(j.current_a)
                 counts[j.servo_id] = counts.get(j.servo_id, 0) + 1
-    return sum(sums[k] / counts[k] for k in sums) if sums else None
+    return {k: sums[k] / counts[k] for k in sums}
 
 
 @metric("window_cost_of_transport", "", "P / (m g v) over the window (thesis eq. 6.4)")
@@ -195,22 +202,16 @@ def fell(result: SimResult, window: Window) -> Value:
     return any(max(abs(x.roll), abs(x.pitch)) > FALLEN_TILT_RAD for x in window.samples(result))
 
 
-@metric("final_x_m", "m", "body centre x at the window's end")
-def final_x_m(result: SimResult, window: Window) -> Value:
-    s = window.samples(result)
-    return s[-1].x if s else None
+def _final(attr: str) -> MetricFn:
+    def fn(result: SimResult, window: Window) -> Value:
+        s = window.samples(result)
+        return float(getattr(s[-1], attr)) if s else None
+
+    return fn
 
 
-@metric("final_y_m", "m", "body centre y at the window's end")
-def final_y_m(result: SimResult, window: Window) -> Value:
-    s = window.samples(result)
-    return s[-1].y if s else None
-
-
-@metric("final_z_m", "m", "body centre height at the window's end")
-def final_z_m(result: SimResult, window: Window) -> Value:
-    s = window.samples(result)
-    return s[-1].z if s else None
+for _attr, _what in (("x", "x"), ("y", "y"), ("z", "height")):
+    metric(f"final_{_attr}_m", "m", f"body centre {_what} at the window's end")(_final(_attr))
 
 
 @metric("final_activity", "", "what the coordinator was doing at the window's end")
@@ -233,4 +234,14 @@ def events(result: SimResult, window: Window) -> Value:
     return " ".join(f"{name}×{n}" for name, n in sorted(counts.items()))
 
 
-__all__ = ["METRIC_MODULES", "Metric", "Value", "Window", "compute", "metric", "registry"]
+__all__ = [
+    "METRIC_MODULES",
+    "Metric",
+    "MetricFn",
+    "Value",
+    "Window",
+    "compute",
+    "metric",
+    "registry",
+    "servo_currents",
+]

@@ -71,6 +71,8 @@ from whexar.runtime.schema import (
     NonNegative,
     Positive,
     Section,
+    builtin_names,
+    builtin_path,
     problem_from_error,
     read_toml,
 )
@@ -252,21 +254,12 @@ def set_path(doc: dict[str, Any], parts: Sequence[str | int], value: Any) -> Non
 
 def campaign_names() -> tuple[str, ...]:
     """The shipped campaigns, by name."""
-    return tuple(sorted(p.stem for p in CAMPAIGN_DIR.glob("*.toml")))
+    return builtin_names(CAMPAIGN_DIR)
 
 
 def campaign_path(name_or_path: str | Path) -> Path:
     """A campaign's file: a bare name (no folder, no ``.toml``) is a shipped campaign."""
-    text = str(name_or_path)
-    if isinstance(name_or_path, Path) or "/" in text or text.endswith(".toml"):
-        return Path(name_or_path)
-    path = CAMPAIGN_DIR / f"{text}.toml"
-    if not path.is_file():
-        known = ", ".join(campaign_names()) or "(none)"
-        raise ConfigError(
-            text, [Problem("(campaign)", text, f"a campaign file or a shipped campaign: {known}")]
-        )
-    return path
+    return builtin_path(name_or_path, CAMPAIGN_DIR, "campaign", "shipped")
 
 
 def load_campaign(name_or_path: str | Path) -> Campaign:

@@ -212,3 +212,25 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(source, [_syntax_problem(exc, text)]) from None
+
+
+def builtin_names(folder: Path) -> tuple[str, ...]:
+    """The names of the TOML files in ``folder`` (built-in scenarios, shipped campaigns)."""
+    return tuple(sorted(p.stem for p in folder.glob("*.toml")))
+
+
+def builtin_path(
+    name_or_path: str | Path, folder: Path, kind: str, shipped: str = "built-in"
+) -> Path:
+    """A file named by the user: a bare name (no folder, no ``.toml``) is ``folder/NAME.toml``,
+    anything else a path. An unknown bare name is a :class:`ConfigError` listing the
+    ``shipped`` files of this ``kind`` (``"scenario"``) there are."""
+    text = str(name_or_path)
+    if isinstance(name_or_path, Path) or "/" in text or text.endswith(".toml"):
+        return Path(name_or_path)
+    path = folder / f"{text}.toml"
+    if not path.is_file():
+        known = ", ".join(builtin_names(folder)) or "(none)"
+        allowed = f"a {kind} file or a {shipped} {kind}: {known}"
+        raise ConfigError(text, [Problem(f"({kind})", text, allowed)])
+    return path

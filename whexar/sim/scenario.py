@@ -74,6 +74,8 @@ from whexar.runtime.schema import (
     NonNegative,
     Positive,
     Section,
+    builtin_names,
+    builtin_path,
     problem_from_error,
     read_toml,
 )
@@ -297,21 +299,12 @@ class Scenario:
 
 def scenario_names() -> tuple[str, ...]:
     """The built-in scenarios, by name."""
-    return tuple(sorted(p.stem for p in SCENARIO_DIR.glob("*.toml")))
+    return builtin_names(SCENARIO_DIR)
 
 
 def scenario_path(name_or_path: str | Path) -> Path:
     """A scenario's file: a bare name (no folder, no ``.toml``) is a built-in scenario."""
-    text = str(name_or_path)
-    if isinstance(name_or_path, Path) or "/" in text or text.endswith(".toml"):
-        return Path(name_or_path)
-    path = SCENARIO_DIR / f"{text}.toml"
-    if not path.is_file():
-        known = ", ".join(scenario_names()) or "(none)"
-        raise ConfigError(
-            text, [Problem("(scenario)", text, f"a scenario file or a built-in scenario: {known}")]
-        )
-    return path
+    return builtin_path(name_or_path, SCENARIO_DIR, "scenario")
 
 
 def load_scenario(name_or_path: str | Path = DEFAULT_SCENARIO) -> Scenario:
