@@ -332,3 +332,36 @@ def test_the_readme_and_docs_examples_load() -> None:
         assert blocks, doc
         for block in blocks:
             assert parse_campaign(tomllib.loads(block), doc).runs
+
+
+def test_a_worker_killed_mid_run_fails_its_run_and_the_campaign_goes_on(tmp_path: Path) -> None:
+    import multiprocessing
+    import os
+    import signal
+    import threading
+    import time
+
+    text = """
+scenario = "wheels"
+metrics = ["distance_m"]
+[[runs]]
+label = "killed"
+duration_s = 60.0
+[[runs]]
+label = "after"
+duration_s = 0.5
+"""
+    campaign = load_campaign(_write(tmp_path, text))
+
+    def kill_the_worker() -> None:  # as the OOM killer would, while run 0000 is under way
+        time.sleep(4.0)
+        for child in multiprocessing.active_children():
+            assert child.pid is not None
+            os.kill(child.pid, signal.SIGKILL)
+
+    killer = threading.Thread(target=kill_the_worker)
+    killer.start()
+    result = run_campaign(campaign, tmp_path / "out", workers=1)
+    killer.join()
+    assert [r.outcome for r in result.rows] == ["failed", "ok"]
+    assert result.rows[0].error == "worker crashed: killed by SIGKILL"

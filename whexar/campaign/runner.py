@@ -42,6 +42,7 @@ import contextlib
 import json
 import multiprocessing
 import os
+import signal
 import tempfile
 import traceback
 from collections.abc import Callable, Iterable, Sequence
@@ -133,6 +134,17 @@ def _failed(run: RunSpec, error: str, wall_s: float) -> Row:
 # --------------------------------------------------------------------------- local processes
 
 
+def _crashed(code: int | None) -> str:
+    """Why a worker ended under its run: a signal (``SIGKILL`` from the OOM killer,
+    ``SIGSEGV``) or an exit code."""
+    if code is not None and code < 0:
+        try:
+            return f"worker crashed: killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"worker crashed: killed by signal {-code}"
+    return f"worker crashed: exit code {code}"
+
+
 def _worker(conn: Connection, recordings: str | None) -> None:
     """A worker process: runs what comes down the pipe until it gets ``None``."""
     while True:
@@ -208,8 +220,8 @@ def _local(
                         on_row(row)
                         continue
                 if s.process.sentinel in ready or not s.process.is_alive():
-                    code = s.process.exitcode
-                    on_row(_failed(run, f"worker crashed (exit code {code})", now - s.started))
+                    s.process.join(timeout=5)  # its exit code is known once it is joined
+                    on_row(_failed(run, _crashed(s.process.exitcode), now - s.started))
                 elif now - s.started > run.timeout_s:
                     on_row(_failed(run, f"timed out after {run.timeout_s:g} s", now - s.started))
                 else:

@@ -27,7 +27,8 @@ from whexar.errors import ConfigError
 if TYPE_CHECKING:
     from whexar.campaign.runner import CampaignResult, Progress
 
-REDRAW_S: Final = 0.2
+BAR_WIDTH: Final = 20
+"""Characters of the progress bar."""
 FAILED_STATUS: Final = 2
 """Exit status when some runs failed (the campaign itself went through)."""
 
@@ -64,8 +65,10 @@ class CampaignProgress(StatusLine):
         if p.latest is not None:
             r = p.latest
             latest = f"  [run {r.id}{' ' + r.label if r.label else ''}: {r.outcome}]"
+        filled = round(BAR_WIDTH * p.done / p.total) if p.total else BAR_WIDTH
+        bar = "[" + "#" * filled + "." * (BAR_WIDTH - filled) + "] "
         return (
-            f"campaign {self.name}: {p.done}/{p.total} done, {p.failed} failed, "
+            f"{bar}campaign {self.name}: {p.done}/{p.total} done, {p.failed} failed, "
             f"{p.running} running{skipped}  {duration_text(p.elapsed_s)} elapsed, "
             f"{duration_text(p.eta_s)} left{latest}"
         )
