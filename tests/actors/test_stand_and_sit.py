@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,11 +105,31 @@ def test_a_safe_stop_sits_down_while_the_bus_still_runs(sprawled: ServoChain) ->
     assert not any(s.torque_enabled for s in sprawled.servos.values())
 
 
-def test_a_lost_bus_is_not_asked_to_sit_down() -> None:
-    # A dead femur servo is BusLost: the scheduler stops cycling, so nothing could carry a
-    # sit-down out; the coordinator does not wait for one, and the stop stays bounded.
+def test_a_lost_servo_stops_the_robot_seated_not_dropped() -> None:
+    # A dead femur servo is BusLost and a safe stop. The scheduler cycles on without it
+    # until it parks the servos, so the coordinator sits the robot down first: parked
+    # standing, with bus.on_stop = torque_off, it would drop onto its belly.
     graph = walk_graph(bus_params={"faults": "config/faults/dead-femur.toml"})
     run = run_walk([(3.0, command(vx_m_s=0.08))], duration=12.0, graph=graph)
-    assert run.log.events(of=BusLost)
+    lost = run.log.events(of=BusLost)
+    assert len(lost) == 1
+    assert "servo 3 (RF femur) lost" in lost[0].reason
+    activities = _activities(run)
+    assert activities.index("sitting_down") < activities.index("seated")
+    assert run.exit_code == 3
+    assert run.end_time < lost[0].t + 3.0  # the stop stays bounded
+
+
+def test_a_lost_port_is_not_asked_to_sit_down(tmp_path: Path) -> None:
+    # The servo port gone: nothing can carry a sit-down out, so the coordinator does not
+    # wait for one, and the stop stays bounded.
+    plan = tmp_path / "unplug.toml"
+    plan.write_text('seed = 0\n[[faults]]\nkind = "unplug"\nat_s = 4.0\n')
+    graph = walk_graph(bus_params={"faults": str(plan)})
+    run = run_walk([(3.0, command(vx_m_s=0.08))], duration=12.0, graph=graph)
+    lost = run.log.events(of=BusLost)
+    assert lost
+    assert lost[0].reason.startswith("servo port lost")
     assert "sitting_down" not in _activities(run)
     assert run.exit_code == 3
+    assert run.end_time < lost[0].t + 3.0

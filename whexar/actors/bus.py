@@ -513,6 +513,8 @@ class BusScheduler(Actor):
         self.supply_low = False
         self.port_lost = False
         self.lost = False
+        self.parked = False
+        """The servos were parked (:meth:`_park`): no more cycles."""
         """Set with :class:`BusLost`: the cycle stops; only the safe stop touches the bus."""
 
     def _open_owner(self) -> PortOwner:
@@ -980,8 +982,11 @@ class BusScheduler(Actor):
             self._lose(f"{s.name} lost: {reason}")
 
     def _lose(self, reason: str) -> None:
+        # Said once, and again only if the port goes too: a second lost servo while the
+        # robot sits down changes nothing, a lost port ends the cycles.
+        if not self.lost or self.port_lost:
+            self.emit(BusLost(t=self.now(), source=self.name, reason=reason))
         self.lost = True
-        self.emit(BusLost(t=self.now(), source=self.name, reason=reason))
         self.request_safe_stop(reason)
 
     # ----------------------------------------------------------------- recovery
@@ -1225,7 +1230,11 @@ class BusScheduler(Actor):
             next_stats = self.now() + self.params.stats_period_s
             cap = self.plan.rate_hz
             next_cycle = self.now()
-            while not self.lost:
+            # A lost servo: the cycles go on without it, for the safe stop the runtime now
+            # makes (the coordinator sits the robot down with them; the bus then parks the
+            # servos, which ends them). Stopped at once, the robot would be parked standing:
+            # with bus.on_stop = torque_off, dropped on its belly.
+            while not (self.port_lost or self.parked):
                 try:
                     await self._cycle(self.owner)
                 except DeviceGoneError as exc:
@@ -1237,8 +1246,7 @@ class BusScheduler(Actor):
                 if cap is not None:
                     next_cycle += 1.0 / cap
                     await self.clock.sleep_until(next_cycle)
-            # Lost: no more cycles (a restore could re-enable torque); the
-            # runtime's safe stop parks the servos, then cancels us here.
+            # Parked, or the port lost: nothing more to cycle; the runtime cancels us here.
             await anyio.sleep_forever()
         finally:
             with self.shielded():
@@ -1277,6 +1285,7 @@ class BusScheduler(Actor):
                 ):
                     return
 
+        self.parked = True
         try:
             await self.owner.call(park)
         except DeviceGoneError:

@@ -253,6 +253,8 @@ class Coordinator(Actor):
         self.cycle = 0
         self.height = self._stance(self.stance_name).height
         self.script: Script | None = None
+        self.stopping = False
+        """A safe stop is under way: the robot sits down and takes no more commands."""
         self.wait: Wait | None = None
         self.winding_down = False
         self.delayed = False
@@ -1013,6 +1015,9 @@ class Coordinator(Actor):
         self._take_tilt(dt)
         if self.commands_in is not None:
             for cmd in self.commands_in.drain():
+                if self.stopping:
+                    self._refuse(cmd, "a safe stop is under way")
+                    continue
                 self._clamp_said = False
                 self._command(cmd)
         # Scripts first: while one runs, nothing else moves the feet.
@@ -1020,6 +1025,8 @@ class Coordinator(Actor):
             self.script = self._next_script()
         if self.script is not None:
             await self._run_script()
+        elif self.stopping:  # sat down for the safe stop: hold still until the bus parks
+            await self._publish()
         elif self.mode == "ride":
             self._set_activity("riding" if self._rolling() else "standing")
             self.steer = True
@@ -1148,6 +1155,7 @@ class Coordinator(Actor):
             or any(f is None for f in self.feet)
         ):
             return False
+        self.stopping = True
         self.script = self._sit_down()
         self.wait = None
         self.want.vx = self.want.vy = self.want.yaw = 0.0

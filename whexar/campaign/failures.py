@@ -40,10 +40,11 @@ that sit-down is the run ending, not the robot's reaction.
 4. ``walk goes on`` — the coordinator still walks and the body still goes.
 
 *A stop in simulation.* The world's time is the bus's: once the bus
-scheduler stops cycling (it does on :class:`BusLost`), nothing steps the
-world, and the samples keep the time and pose of that moment
-(:func:`world_stopped_at_s` says when). Such a run shows the robot as it
-stood when the runtime stopped it, not what parking the servos did after.
+scheduler stops cycling, nothing steps the world, and the samples keep the
+time and pose of that moment (:func:`world_stopped_at_s` says when). After a
+lost servo the scheduler cycles on while the robot sits down, until it parks
+the servos; only a lost port stops it at once. Such a run shows the robot as
+it stood when the cycles ended, not what parking the servos did after.
 
 A run whose data does not allow a decision (no samples, no failure found)
 has no outcome (``None``); no metric raises on bad data.
