@@ -59,7 +59,9 @@ Failures, after ROBOTIS's ros2_control hardware interface:
 * Fast Sync Read that fails where Sync Read succeeds three times in a row
   falls back to Sync Read; it is detected again after a servo recovers;
 * losing a femur or tibia servo (the legs cannot carry the body), or the
-  port itself, is :class:`BusLost` and asks the runtime for a safe stop.
+  port itself, is :class:`BusLost` and asks the runtime for a safe stop;
+  after a lost servo the cycles go on without it until the servos are parked,
+  so that the coordinator can sit the robot down first.
 
 On stop (and on a safe stop) the wheels are brought to zero speed, then the
 servos end in ``bus.on_stop``: torque off by default, or holding their last
@@ -513,9 +515,10 @@ class BusScheduler(Actor):
         self.supply_low = False
         self.port_lost = False
         self.lost = False
+        """Set with :class:`BusLost`. A lost servo: the cycles go on without it, so that the
+        safe stop can sit the robot down; a lost port (:attr:`port_lost`) ends them."""
         self.parked = False
         """The servos were parked (:meth:`_park`): no more cycles."""
-        """Set with :class:`BusLost`: the cycle stops; only the safe stop touches the bus."""
 
     def _open_owner(self) -> PortOwner:
         name = self.params.port or self.cfg.bus.port
