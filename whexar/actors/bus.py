@@ -151,6 +151,9 @@ NOMINAL_SMOOTHING: Final = 0.1
 """Weight of the newest healthy cycle in the nominal cycle time (an exponential mean)."""
 DEFAULT_NOMINAL_S: Final = 0.02
 """The nominal cycle time before the first healthy cycle was measured."""
+MIN_CYCLE_S: Final = 0.005
+"""Shortest cycle after a lost servo, while the robot sits down (a measured nominal cycle
+of zero bus time, as a replay past its recording's answers has, would stop the clock)."""
 MIN_PROBE_TIMEOUT_MS: Final = 1.0
 """Shortest wait for a probed servo's status: a servo answers in ~0.1 ms plus its Return
 Delay Time at 1 Mbps, and a USB adapter adds its latency timer (1 ms when set right)."""
@@ -1238,11 +1241,17 @@ class BusScheduler(Actor):
             # servos, which ends them). Stopped at once, the robot would be parked standing:
             # with bus.on_stop = torque_off, dropped on its belly.
             while not (self.port_lost or self.parked):
+                started = self.clock.now()
                 try:
                     await self._cycle(self.owner)
                 except DeviceGoneError as exc:
                     self.port_lost = True
                     self._lose(f"servo port lost: {exc}")
+                if self.lost:
+                    # No cycle shorter than the nominal one while the robot sits down: a
+                    # cycle can cost no bus time (a replay whose recording has no answer
+                    # to the sit-down's packets), and the safe stop's time must go on.
+                    await self.clock.sleep_until(started + max(self.nominal_s, MIN_CYCLE_S))
                 if self.now() >= next_stats:
                     await self._report()
                     next_stats += self.params.stats_period_s
