@@ -417,10 +417,11 @@ CURRENT_WHY: Final = Why(
 )
 SPEED_WHY: Final = Why(
     higher="",
-    lower="The simulated robot slips back down the plane with every step (its uphill "
-    "speed falls with the slope); we have not found the cause. Candidates: the stance "
-    "wheels, held only by their servos' velocity loop at zero speed, and the ground's "
-    "friction (µ 0.9, rubber on concrete) with three feet down.",
+    lower="The simulated robot loses ground with every step (its uphill speed falls with "
+    "the slope, and from about 23° it slides back); we have not found the cause. On 14° "
+    "its stance feet neither slide nor roll, the feet land where they are sent in the "
+    "body frame and the trochanters follow their goals, yet each step is shorter in the "
+    "world than on the flat.",
 )
 RIDE_SPEED_WHY: Final = Why(
     higher="",
