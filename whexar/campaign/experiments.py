@@ -417,11 +417,11 @@ CURRENT_WHY: Final = Why(
 )
 SPEED_WHY: Final = Why(
     higher="",
-    lower="The simulated robot loses ground with every step (its uphill speed falls with "
-    "the slope, and from about 23° it slides back); we have not found the cause. On 14° "
-    "its stance feet neither slide nor roll, the feet land where they are sent in the "
-    "body frame and the trochanters follow their goals, yet each step is shorter in the "
-    "world than on the flat.",
+    lower="The simulated robot loses ground with every step, and from about 23° it slides "
+    "back. On 14° its stance feet neither slide nor roll and the trochanters follow their "
+    "goals, but the stance legs lag their goals under the load (position control: the "
+    "error grows with the torque), more than on the flat, so each stance stroke is "
+    "shorter than commanded. What slides it back from 23° we have not found.",
 )
 RIDE_SPEED_WHY: Final = Why(
     higher="",
