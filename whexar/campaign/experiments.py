@@ -419,9 +419,9 @@ SPEED_WHY: Final = Why(
     higher="",
     lower="The simulated robot loses ground with every step, and from about 23° it slides "
     "back. On 14° its stance feet neither slide nor roll and the trochanters follow their "
-    "goals, but the stance legs lag their goals under the load (position control: the "
-    "error grows with the torque), more than on the flat, so each stance stroke is "
-    "shorter than commanded. What slides it back from 23° we have not found.",
+    "goals; the stance legs lag their goals more than on the flat (position control: "
+    "the error grows with the load), which shortens each stroke, but whether that is all "
+    "of the loss, and what slides it back from 23°, we have not established.",
 )
 RIDE_SPEED_WHY: Final = Why(
     higher="",
