@@ -51,20 +51,20 @@ images can be copied into ``docs/`` as they are.
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final, Protocol
+from typing import TYPE_CHECKING, Any, Final
 
 from whexar.actors.messages import LegState
-from whexar.campaign.metrics import G, Value, Window, metric, servo_currents
+from whexar.campaign.metrics import G, Value, Window, mean_power, metric, servo_currents
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import JOINT_NAMES
 from whexar.sim.run import FALLEN_TILT_RAD
 
 if TYPE_CHECKING:
+    from whexar.campaign.rows import Row
     from whexar.sim.run import Sample, SimResult
 
 # --------------------------------------------------------------------------- the campaign's keys
@@ -115,15 +115,6 @@ def _supply_voltage(result: SimResult) -> float:
     return float(result.world.cfg.robot.supply_voltage_v)
 
 
-def _mean_power(samples: Sequence[Sample]) -> float | None:
-    if len(samples) < 2 or samples[-1].t <= samples[0].t:
-        return None
-    energy = sum(
-        0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(samples)
-    )
-    return energy / (samples[-1].t - samples[0].t)
-
-
 @metric(
     "total_current_a",
     "A",
@@ -132,7 +123,7 @@ def _mean_power(samples: Sequence[Sample]) -> float | None:
 )
 def total_current_a(result: SimResult, window: Window) -> Value:
     """Σ over every servo of its mean |current| in the window (eq. 6.1–6.3), A."""
-    power = _mean_power(window.samples(result))
+    power = mean_power(window.samples(result))
     return None if power is None else power / _supply_voltage(result)
 
 
@@ -313,7 +304,7 @@ def circle_return_m(result: SimResult, window: Window) -> Value:
 
 def _first_fall(result: SimResult) -> Sample | None:
     for s in result.samples:
-        if max(abs(s.roll), abs(s.pitch)) > FALLEN_TILT_RAD:
+        if s.tilt > FALLEN_TILT_RAD:
             return s
     return None
 
@@ -493,33 +484,18 @@ class Figure:
         return {"name": self.name, "unit": self.unit, "thesis": self.thesis, "sim": self.sim}
 
 
-class RowLike(Protocol):
-    """What :func:`figures` reads of a campaign row (:class:`whexar.campaign.rows.Row`)."""
-
-    @property
-    def label(self) -> str: ...
-    @property
-    def variation(self) -> dict[str, Any]: ...
-    @property
-    def metrics(self) -> dict[str, Value]: ...
-    @property
-    def outcome(self) -> str: ...
-    @property
-    def error(self) -> str | None: ...
-
-
-def _slope(row: RowLike) -> float:
+def _slope(row: Row) -> float:
     value = row.variation.get(SLOPE_KEY, 0.0)
     return float(value) if isinstance(value, int | float) else 0.0
 
 
-def _trochanter(row: RowLike) -> bool:
+def _trochanter(row: Row) -> bool:
     return bool(row.variation.get(TROCHANTER_KEY, True))
 
 
 def _find(
-    rows: Iterable[RowLike], label: str, slope: float = 0.0, trochanter: bool | None = None
-) -> RowLike | None:
+    rows: Iterable[Row], label: str, slope: float = 0.0, trochanter: bool | None = None
+) -> Row | None:
     for row in rows:
         if (
             row.label == label
@@ -530,7 +506,7 @@ def _find(
     return None
 
 
-def _number(row: RowLike | None, key: str) -> float | None:
+def _number(row: Row | None, key: str) -> float | None:
     if row is None or row.outcome != "ok":
         return None
     value = row.metrics.get(key)
@@ -539,7 +515,7 @@ def _number(row: RowLike | None, key: str) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def commanded_speed(row: RowLike) -> float | None:
+def commanded_speed(row: Row) -> float | None:
     """The fastest speed the row's commands ask for (m/s), from its variation."""
     commands = row.variation.get("commands")
     speeds = [
@@ -550,7 +526,7 @@ def commanded_speed(row: RowLike) -> float | None:
     return max(speeds) if speeds and max(speeds) > 0 else None
 
 
-def made_it(row: RowLike) -> bool | None:
+def made_it(row: Row) -> bool | None:
     """Whether a movement went up the plane (see the module docstring); ``None``: unknown."""
     speed, wanted = _number(row, "uphill_speed_mps"), commanded_speed(row)
     turned = _number(row, "max_heading_change_deg")
@@ -563,7 +539,7 @@ def made_it(row: RowLike) -> bool | None:
     )
 
 
-def held(row: RowLike) -> bool | None:
+def held(row: Row) -> bool | None:
     """Whether a static stance held (see the module docstring); ``None``: unknown."""
     slid = _number(row, "displacement_m")
     if slid is None:
@@ -571,7 +547,7 @@ def held(row: RowLike) -> bool | None:
     return row.metrics.get("fell") is False and slid <= MAX_SLIDE_M
 
 
-def steepest(rows: Iterable[RowLike], label: str, trochanter: bool) -> float | None:
+def steepest(rows: Iterable[Row], label: str, trochanter: bool) -> float | None:
     """The highest tested slope (°) with every tested slope up to it passed; ``None`` when
     the lowest failed or nothing was tested."""
     judge = held if label.startswith("stance") else made_it
@@ -618,7 +594,7 @@ def _figure(
     return Figure(name, unit, thesis, sim, source, " ".join(notes))
 
 
-def _outcome_note(row: RowLike | None, judge: Callable[[RowLike], bool | None]) -> str:
+def _outcome_note(row: Row | None, judge: Callable[[Row], bool | None]) -> str:
     if row is None:
         return "no such run in the campaign"
     if row.outcome != "ok":
@@ -640,7 +616,7 @@ def _outcome_note(row: RowLike | None, judge: Callable[[RowLike], bool | None]) 
     return f"Slid {slid:.3f} m in its 3 s window." if slid is not None else ""
 
 
-def _saving_note(rows: Sequence[RowLike], saving: float | None) -> str:
+def _saving_note(rows: Sequence[Row], saving: float | None) -> str:
     """Why stance No. 3 saves less than the thesis's 23 % at 32°, from the coxa servos'
     current (the thesis saw the trochanter relieve them, 6.8.2, Fig. 6.8)."""
     if saving is None or saving >= STATIC_SAVING_32_PCT:
@@ -657,7 +633,7 @@ def _saving_note(rows: Sequence[RowLike], saving: float | None) -> str:
     )
 
 
-def figures(rows: Sequence[RowLike]) -> list[Figure]:
+def figures(rows: Sequence[Row]) -> list[Figure]:
     """The thesis's figures beside the simulation's, from the campaign's rows (see the
     module docstring); one :class:`Figure` per figure, in the report's order."""
     out: list[Figure] = []
@@ -942,7 +918,7 @@ def table_text(found: Sequence[Figure]) -> str:
 
 
 def _series(
-    rows: Sequence[RowLike], label: str, trochanter: bool | None, key: str
+    rows: Sequence[Row], label: str, trochanter: bool | None, key: str
 ) -> tuple[list[float], list[float]]:
     """``key`` against the slope for the runs that made it or held: a fallen robot's
     current says nothing of the stance or the movement."""
@@ -959,7 +935,7 @@ def _series(
     return [p[0] for p in points], [p[1] for p in points]
 
 
-def _plot_static(rows: Sequence[RowLike], path: Path) -> Path:
+def _plot_static(rows: Sequence[Row], path: Path) -> Path:
     fig, ax = new_figure(8.0, 4.5)
     for number, style in ((1, "o-"), (2, "s-"), (3, "^-")):
         label = STANCE_LABELS[number]
@@ -973,7 +949,7 @@ def _plot_static(rows: Sequence[RowLike], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def _plot_motion(rows: Sequence[RowLike], path: Path) -> Path:
+def _plot_motion(rows: Sequence[Row], path: Path) -> Path:
     fig, ax = new_figure(8.0, 4.5)
     for movement, color in ((TRIPOD, "tab:blue"), (WHEELS, "tab:orange")):
         for trochanter, style in ((False, "--"), (True, "-")):
@@ -997,7 +973,7 @@ def _plot_motion(rows: Sequence[RowLike], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def _plot_cot(rows: Sequence[RowLike], path: Path) -> Path:
+def _plot_cot(rows: Sequence[Row], path: Path) -> Path:
     fig, ax = new_figure(10.0, 4.5)
     names: list[str] = []
     thesis: list[float] = []
@@ -1023,7 +999,7 @@ def _plot_cot(rows: Sequence[RowLike], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def _plot_sweep(rows: Sequence[RowLike], path: Path) -> Path:
+def _plot_sweep(rows: Sequence[Row], path: Path) -> Path:
     fig, ax = new_figure(9.0, 4.0)
     lines = [
         ("walk", False, TRIPOD),
@@ -1054,7 +1030,7 @@ def _plot_sweep(rows: Sequence[RowLike], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def _plot_joints(rows: Sequence[RowLike], path: Path) -> Path:
+def _plot_joints(rows: Sequence[Row], path: Path) -> Path:
     fig, ax = new_figure(8.0, 4.0)
     groups = [
         (f"No. {n} {slope}°", _find(rows, STANCE_LABELS[n], float(slope)))
@@ -1080,7 +1056,7 @@ def _plot_joints(rows: Sequence[RowLike], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-PLOTS: Final[tuple[tuple[str, Callable[[Sequence[RowLike], Path], Path], str], ...]] = (
+PLOTS: Final[tuple[tuple[str, Callable[[Sequence[Row], Path], Path], str], ...]] = (
     (
         "static-current.png",
         _plot_static,
@@ -1097,7 +1073,7 @@ PLOTS: Final[tuple[tuple[str, Callable[[Sequence[RowLike], Path], Path], str], .
 )
 
 
-def report_markdown(found: Sequence[Figure], rows: Sequence[RowLike]) -> str:
+def report_markdown(found: Sequence[Figure], rows: Sequence[Row]) -> str:
     """``experiments.md``: what was run, the table, the plots."""
     failed = [r for r in rows if r.outcome != "ok"]
     lines = [
@@ -1136,7 +1112,7 @@ def report_markdown(found: Sequence[Figure], rows: Sequence[RowLike]) -> str:
     return "\n".join(lines)
 
 
-def write_report(rows: Sequence[RowLike], out_dir: str | Path) -> list[Path]:
+def write_report(rows: Sequence[Row], out_dir: str | Path) -> list[Path]:
     """Write ``experiments.md`` and its plots (under ``img/experiments/``) into ``out_dir``;
     the paths written."""
     out = Path(out_dir)

@@ -55,21 +55,21 @@ from __future__ import annotations
 import itertools
 import math
 from collections import Counter
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final, Protocol, cast
+from typing import TYPE_CHECKING, Final, cast
 
 from whexar.actors.messages import BusLost, LocomotionState, ServoDegraded, ServoFault, SwingEnded
 from whexar.bus.emulator.faults import FaultInjector
-from whexar.campaign.metrics import MetricFn, Value, Window, metric
+from whexar.campaign.metrics import MetricFn, Value, Window, metric, path_speed
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.messages import ActorStopped, SafeStop, StopRequested
 from whexar.sim.run import FALLEN_TILT_RAD, SAMPLE_PERIOD_S, Quiet, travelled
 
 if TYPE_CHECKING:
-    from whexar.runtime.messages import Event
+    from whexar.campaign.rows import Row
     from whexar.sim.run import Sample, SimResult
 
 # --------------------------------------------------------------------------- thresholds
@@ -174,19 +174,12 @@ def failure(result: SimResult) -> Failure | None:
     """The run's failed servo: from its fault injector, else from the bus's first fault."""
     found = _injected(result)
     if found is None:
-        faults = [e for e in _events(result) if isinstance(e, ServoFault)]
+        faults = [e for e in result.events if isinstance(e, ServoFault)]
         if not faults:
             return None
         found = faults[0].servo_id, faults[0].t
     sid, t = found
     return Failure(sid, t, *_locate(result, sid))
-
-
-def _events(result: SimResult) -> list[Event]:
-    try:
-        return list(result.events)
-    except (AttributeError, TypeError):
-        return []
 
 
 def _end(result: SimResult, window: Window) -> float:
@@ -195,35 +188,18 @@ def _end(result: SimResult, window: Window) -> float:
     return end if window.to_s is None else min(window.to_s, end)
 
 
-def _between(samples: Iterable[Sample], t0: float, t1: float) -> list[Sample]:
-    return [s for s in samples if t0 - 1e-9 <= s.t <= t1 + 1e-9]
-
-
 def _after(result: SimResult, window: Window) -> tuple[Failure, list[Sample]] | None:
     """The failure and the samples from it to the end (``None`` if either is missing)."""
     f = failure(result)
     if f is None:
         return None
-    samples = _between(result.samples, f.t, _end(result, window))
+    samples = Window(f.t, _end(result, window)).samples(result)
     return (f, samples) if samples else None
 
 
-def _tilt(s: Sample) -> float:
-    return max(abs(s.roll), abs(s.pitch))
-
-
 def _states(result: SimResult, t0: float, t1: float) -> list[LocomotionState]:
-    try:
-        states = result.run.log.messages("locomotion", of=LocomotionState)
-    except (AttributeError, KeyError):
-        return []
+    states = result.run.log.messages("locomotion", of=LocomotionState)
     return [m for m in states if t0 - 1e-9 <= m.t <= t1 + 1e-9]
-
-
-def _speed(samples: Sequence[Sample]) -> float | None:
-    if len(samples) < 2 or samples[-1].t <= samples[0].t:
-        return None
-    return travelled(samples) / (samples[-1].t - samples[0].t)
 
 
 # --------------------------------------------------------------------------- the metrics
@@ -256,7 +232,7 @@ def detected_after_s(result: SimResult, window: Window) -> Value:
     f = failure(result)
     if f is None:
         return None
-    for e in _events(result):
+    for e in result.events:
         if isinstance(e, ServoDegraded) and e.servo_id == f.servo_id and e.t >= f.t - 1e-9:
             return e.t - f.t
     return None
@@ -278,7 +254,7 @@ def speed_kept(result: SimResult, window: Window) -> Value:
     if found is None:
         return None
     f, after = found
-    before = _speed(_between(result.samples, f.t - BEFORE_S, f.t))
+    before = path_speed(Window(f.t - BEFORE_S, f.t).samples(result))
     # Over the whole stretch after the failure, not the samples': once the runtime stops,
     # nothing steps the world any more and the samples stop at that time; the robot
     # made no more way.
@@ -301,7 +277,7 @@ def heading_change_deg(result: SimResult, window: Window) -> Value:
 @metric("max_tilt_after_deg", "°", "largest |roll| or |pitch| from the failure to the end")
 def max_tilt_after_deg(result: SimResult, window: Window) -> Value:
     found = _after(result, window)
-    return None if found is None else math.degrees(max(_tilt(s) for s in found[1]))
+    return None if found is None else math.degrees(max(s.tilt for s in found[1]))
 
 
 @metric("height_drop_m", "m", "how far the body centre sank below its height at the failure")
@@ -318,7 +294,7 @@ def stopped_at_s(result: SimResult, window: Window) -> Value:
     f = failure(result)
     if f is None:
         return None
-    for e in _events(result):
+    for e in result.events:
         if isinstance(e, BusLost | SafeStop) and e.t >= f.t - 1e-9:
             return e.t
     return None
@@ -357,7 +333,7 @@ def reaction(result: SimResult, window: Window) -> Value:
         return None
     end = _end(result, window)
     counts: Counter[str] = Counter()
-    for e in _events(result):
+    for e in result.events:
         if not f.t - 1e-9 <= e.t <= end + 1e-9 or isinstance(e, ROUTINE):
             continue
         if isinstance(e, StopRequested) and not e.reason.startswith("safe stop"):
@@ -382,7 +358,7 @@ def robot_outcome(result: SimResult, window: Window) -> Value:
     sat = any(m.activity in SITTING for m in states)
     z0 = after[0].z
     sank = z0 > 0 and (z0 - min(s.z for s in after)) > COLLAPSE_DROP_FRACTION * z0
-    if any(_tilt(s) > FALLEN_TILT_RAD for s in after) or (sank and not sat):
+    if any(s.tilt > FALLEN_TILT_RAD for s in after) or (sank and not sat):
         return "fall"
     stopped = stopped_at_s(result, Window(f.t, end)) is not None
     if stopped or not states or states[-1].activity not in MOVING:
@@ -394,21 +370,6 @@ def robot_outcome(result: SimResult, window: Window) -> Value:
 
 
 # --------------------------------------------------------------------------- the report
-
-
-class RowLike(Protocol):
-    """What the report reads of a campaign's row (:class:`whexar.campaign.Row`)."""
-
-    @property
-    def label(self) -> str: ...
-    @property
-    def variation(self) -> Mapping[str, Any]: ...
-    @property
-    def metrics(self) -> Mapping[str, Value]: ...
-    @property
-    def outcome(self) -> str: ...
-    @property
-    def error(self) -> str | None: ...
 
 
 @dataclass(frozen=True)
@@ -428,7 +389,7 @@ class _Line:
     world_stopped_s: float | None
 
 
-def _planned_servo(row: RowLike) -> int | None:
+def _planned_servo(row: Row) -> int | None:
     """The servo a row's variation silences, for a run that gave no metrics."""
     # A grid's ids override the inline plan's, so they are looked at first.
     keys = sorted(row.variation, key=lambda k: not k.endswith(".ids"))
@@ -449,7 +410,7 @@ def _number(value: Value) -> float | None:
     return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
 
 
-def _line(row: RowLike) -> _Line:
+def _line(row: Row) -> _Line:
     m = row.metrics
     sid = m.get("failed_servo")
     servo = sid if isinstance(sid, int) and not isinstance(sid, bool) else _planned_servo(row)
@@ -482,7 +443,7 @@ def _fmt(value: float | None, spec: str) -> str:
     return "–" if value is None else format(value, spec)
 
 
-def _planned_time(row: RowLike) -> float | None:
+def _planned_time(row: Row) -> float | None:
     """When a row's variation has its fault start, for a run that gave no time."""
     plan = row.variation.get("faults")
     faults = plan.get("faults") if isinstance(plan, Mapping) else None
@@ -630,7 +591,7 @@ def _grid(lines: Sequence[_Line], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def write_report(rows: Sequence[RowLike], out_dir: Path) -> list[Path]:
+def write_report(rows: Sequence[Row], out_dir: Path) -> list[Path]:
     """Write ``servo-failures.md`` and ``img/servo-failures.png`` into ``out_dir``.
 
     One line per row (per servo): its ID, leg, joint, outcome, distance made after the
@@ -650,7 +611,7 @@ def write_report(rows: Sequence[RowLike], out_dir: Path) -> list[Path]:
 __all__ = [
     "OUTCOMES",
     "Failure",
-    "RowLike",
+    "Row",
     "failure",
     "write_report",
 ]

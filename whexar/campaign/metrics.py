@@ -19,7 +19,6 @@ the same rows, bit for bit, on local processes and on Ray.
 from __future__ import annotations
 
 import importlib
-import itertools
 import math
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -28,7 +27,7 @@ from typing import TYPE_CHECKING, Final
 
 from whexar.actors.messages import LocomotionState, ServoStates
 from whexar.runtime.messages import ActorStopped, StopRequested
-from whexar.sim.run import FALLEN_TILT_RAD, Quiet, travelled
+from whexar.sim.run import FALLEN_TILT_RAD, Quiet, energy_j, travelled
 
 if TYPE_CHECKING:
     from whexar.sim.run import Sample, SimResult
@@ -135,10 +134,21 @@ def window_s(result: SimResult, window: Window) -> Value:
 
 @metric("speed_mps", "m/s", "path length over the window, over its duration")
 def speed_mps(result: SimResult, window: Window) -> Value:
-    s = window.samples(result)
-    if len(s) < 2 or s[-1].t <= s[0].t:
+    return path_speed(window.samples(result))
+
+
+def path_speed(samples: Sequence[Sample]) -> float | None:
+    """Path length over the samples' time span (m/s); ``None`` for no span."""
+    if len(samples) < 2 or samples[-1].t <= samples[0].t:
         return None
-    return travelled(s) / (s[-1].t - s[0].t)
+    return travelled(samples) / (samples[-1].t - samples[0].t)
+
+
+def mean_power(samples: Sequence[Sample]) -> float | None:
+    """Mean electric power over the samples' time span (W); ``None`` for no span."""
+    if len(samples) < 2 or samples[-1].t <= samples[0].t:
+        return None
+    return energy_j(samples) / (samples[-1].t - samples[0].t)
 
 
 @metric("displacement_m", "m", "straight-line distance from the window's start to its end")
@@ -149,11 +159,7 @@ def displacement_m(result: SimResult, window: Window) -> Value:
 
 @metric("mean_power_w", "W", "mean electric power over the window")
 def mean_power_w(result: SimResult, window: Window) -> Value:
-    s = window.samples(result)
-    if len(s) < 2:
-        return None
-    energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(s))
-    return energy / (s[-1].t - s[0].t)
+    return mean_power(window.samples(result))
 
 
 @metric(
@@ -194,12 +200,12 @@ def window_cost_of_transport(result: SimResult, window: Window) -> Value:
 @metric("max_tilt_deg", "°", "largest |roll| or |pitch| of the body over the window")
 def max_tilt_deg(result: SimResult, window: Window) -> Value:
     s = window.samples(result)
-    return max(math.degrees(max(abs(x.roll), abs(x.pitch))) for x in s) if s else None
+    return max(math.degrees(x.tilt) for x in s) if s else None
 
 
 @metric("fell", "", "whether the body tilted past 60° inside the window")
 def fell(result: SimResult, window: Window) -> Value:
-    return any(max(abs(x.roll), abs(x.pitch)) > FALLEN_TILT_RAD for x in window.samples(result))
+    return any(x.tilt > FALLEN_TILT_RAD for x in window.samples(result))
 
 
 def _final(attr: str) -> MetricFn:
@@ -241,7 +247,9 @@ __all__ = [
     "Value",
     "Window",
     "compute",
+    "mean_power",
     "metric",
+    "path_speed",
     "registry",
     "servo_currents",
 ]

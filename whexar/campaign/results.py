@@ -3,7 +3,7 @@
 Theory of operation
 -------------------
 One row per run, in the campaign's order. ``results.json`` keeps every row
-whole (:meth:`~whexar.campaign.runner.Row.to_json`); ``results.csv`` has one
+whole (:meth:`~whexar.campaign.rows.Row.to_json`); ``results.csv`` has one
 column per variation key (its value as JSON, so a list stays one cell), per
 metric, then the state hash, the outcome, the error and the wall time.
 ``summary.md`` is the same table for a person, with the failed runs' errors.
@@ -21,18 +21,13 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any
 
 from whexar.campaign.metrics import registry
+from whexar.campaign.spec import REPORTS
 
 if TYPE_CHECKING:
     from whexar.campaign.rows import CampaignResult, Row
-
-REPORT_WRITERS: Final = {
-    "experiments": "whexar.campaign.experiments",
-    "servo-failures": "whexar.campaign.failures",
-}
-"""The module whose ``write_report(rows, out_dir)`` writes each built-in report."""
 
 
 def write_results(result: CampaignResult) -> list[Path]:
@@ -44,7 +39,7 @@ def write_results(result: CampaignResult) -> list[Path]:
     if plot is not None:
         written.append(plot)
     if camp.report is not None:
-        module = importlib.import_module(REPORT_WRITERS[camp.report])
+        module = importlib.import_module(REPORTS[camp.report])
         written.extend(module.write_report(result.rows, out))
     return written
 
@@ -223,4 +218,4 @@ def _legend(key: str) -> str:
     return ", ".join(f"{k}={shown(v)}" for k, v in rest.items()) or "all"
 
 
-__all__ = ["REPORT_WRITERS", "metrics_table", "shown", "write_results"]
+__all__ = ["metrics_table", "shown", "write_results"]

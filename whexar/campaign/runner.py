@@ -45,7 +45,7 @@ import os
 import signal
 import tempfile
 import traceback
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
@@ -102,18 +102,8 @@ def run_one(run: RunSpec, recordings: str | None = None) -> Row:
             metrics = compute(run.metrics, result, run.window)
             state_hash = result.world.state_hash()
     except Exception as exc:  # a run's failure is a row, never the campaign's end
-        return Row(
-            run.id,
-            run.label,
-            run.variation,
-            {},
-            None,
-            "failed",
-            f"{type(exc).__name__}: {exc}",
-            monotonic() - start,
-            run.key,
-            traceback.format_exc(),
-        )
+        error = f"{type(exc).__name__}: {exc}"
+        return _failed(run, error, monotonic() - start, traceback.format_exc())
     return Row(
         run.id,
         run.label,
@@ -127,8 +117,10 @@ def run_one(run: RunSpec, recordings: str | None = None) -> Row:
     )
 
 
-def _failed(run: RunSpec, error: str, wall_s: float) -> Row:
-    return Row(run.id, run.label, run.variation, {}, None, "failed", error, wall_s, run.key)
+def _failed(run: RunSpec, error: str, wall_s: float, details: str | None = None) -> Row:
+    return Row(
+        run.id, run.label, run.variation, {}, None, "failed", error, wall_s, run.key, details
+    )
 
 
 # --------------------------------------------------------------------------- local processes
@@ -339,20 +331,19 @@ def run_campaign(
     ray: str | None = None,
     resume: bool = False,
     progress: Callable[[Progress], None] | None = None,
-    runs: Iterable[RunSpec] | None = None,
 ) -> CampaignResult:
     """Run ``campaign`` (see the module docstring); its files go into ``out_dir``.
 
     ``workers`` local processes (default: :func:`default_workers`), or Ray tasks
     when ``ray`` is an address (``""``: Ray's default). ``resume`` keeps the
     rows already finished ``ok`` in ``out_dir``. ``progress`` is called as runs
-    start and end. ``runs`` limits the campaign to some of its runs.
+    start and end.
     """
     from whexar.campaign.results import write_results
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    todo = list(campaign.runs if runs is None else runs)
+    todo = list(campaign.runs)
     journal = out / RUNS_FILE
     kept: dict[str, Row] = {}
     if resume:

@@ -57,7 +57,7 @@ import json
 import re
 import tempfile
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -73,6 +73,7 @@ from whexar.runtime.schema import (
     Section,
     builtin_names,
     builtin_path,
+    format_path,
     problem_from_error,
     read_toml,
 )
@@ -94,8 +95,12 @@ DEFAULT_METRICS: Final = (
     "events",
 )
 """The metrics a campaign keeps when it names none."""
-REPORTS: Final = ("experiments", "servo-failures")
-"""The built-in reports a campaign can ask for (``report = …``)."""
+REPORTS: Final = {
+    "experiments": "whexar.campaign.experiments",
+    "servo-failures": "whexar.campaign.failures",
+}
+"""The built-in reports a campaign can ask for (``report = …``), and the module whose
+``write_report(rows, out_dir)`` writes each."""
 _SCENARIO_KEYS: Final = tuple(ScenarioFile.model_fields)
 _ALLOWED_KEYS: Final = (
     f"a scenario key ({', '.join(_SCENARIO_KEYS)}, with .key and [index] inside them), "
@@ -146,8 +151,11 @@ class RunSpec:
     metrics: tuple[str, ...]
     record: bool = False
     timeout_s: float = 600.0
-    key: str = field(default="", compare=False)
-    """What decides the result, hashed (:func:`run_key`)."""
+
+    @property
+    def key(self) -> str:
+        """What decides the result, hashed (:func:`run_key`)."""
+        return run_key(self)
 
     def build(self, folder: Path) -> Scenario:
         """The checked scenario, its configuration and fault plan written into ``folder``.
@@ -215,23 +223,16 @@ def parse_path(key: str) -> list[str | int]:
     return parts
 
 
-def _shown(parts: Sequence[str | int]) -> str:
-    out = ""
-    for p in parts:
-        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else p)
-    return out
-
-
 def set_path(doc: dict[str, Any], parts: Sequence[str | int], value: Any) -> None:
     """Set ``value`` at ``parts`` in ``doc``: tables are made where missing, list items must
     exist. Raises ValueError saying where the path cannot go."""
     node: Any = doc
     for k, part in enumerate(parts):
         last = k == len(parts) - 1
-        here = _shown(parts[: k + 1])
+        here = format_path(parts[: k + 1])
         if isinstance(part, int):
             if not isinstance(node, list):
-                raise ValueError(f"{_shown(parts[:k])} is not a list")
+                raise ValueError(f"{format_path(parts[:k])} is not a list")
             if part >= len(node):
                 raise ValueError(f"{here}: the list has {len(node)} items")
             if last:
@@ -240,7 +241,7 @@ def set_path(doc: dict[str, Any], parts: Sequence[str | int], value: Any) -> Non
                 node = node[part]
             continue
         if not isinstance(node, dict):
-            raise ValueError(f"{_shown(parts[:k])} is {node!r}, not a table")
+            raise ValueError(f"{format_path(parts[:k])} is {node!r}, not a table")
         if last:
             node[part] = copy.deepcopy(value)
             return
@@ -468,7 +469,7 @@ def _run_spec(
     window = _window(measure, f"{at}.measure", problems)
     if bad or window is None:
         return None
-    run = RunSpec(
+    return RunSpec(
         id=run_id,
         label=label,
         variation=variation,
@@ -481,7 +482,6 @@ def _run_spec(
         record=spec.record,
         timeout_s=timeout_s,
     )
-    return _with_key(run)
 
 
 def _terrain_table(terrain: object) -> object:
@@ -561,12 +561,6 @@ def run_key(run: RunSpec) -> str:
         default=str,
     )
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
-
-
-def _with_key(run: RunSpec) -> RunSpec:
-    from dataclasses import replace
-
-    return replace(run, key=run_key(run))
 
 
 def _toml_safe(value: Any) -> Any:

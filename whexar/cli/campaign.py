@@ -17,11 +17,10 @@ exit status is 0 when every run finished, 2 when some failed (their rows say why
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from whexar.cli.common import Commands, StatusLine, print_json
+from whexar.cli.common import Commands, StatusLine, print_json, print_problems
 from whexar.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -72,14 +71,6 @@ class CampaignProgress(StatusLine):
             f"{p.running} running{skipped}  {duration_text(p.elapsed_s)} elapsed, "
             f"{duration_text(p.eta_s)} left{latest}"
         )
-
-
-def print_problems(exc: ConfigError) -> None:
-    """A checked file's problems, one a line, on stderr."""
-    count = len(exc.problems)
-    print(f"{exc.source}: {count} problem{'s' if count != 1 else ''}", file=sys.stderr)
-    for problem in exc.problems:
-        print(f"  {problem}", file=sys.stderr)
 
 
 def _shown(path: Path, folder: Path) -> str:

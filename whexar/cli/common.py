@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final, TypeAlias
 
-from whexar.errors import UsageError
+from whexar.errors import ConfigError, UsageError
 from whexar.runtime.clock import wall_stamp
 
 Handler: TypeAlias = Callable[[argparse.Namespace], int]
@@ -25,6 +25,15 @@ Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 def print_json(value: object) -> None:
     """Print ``value`` as one line of JSON."""
     print(json.dumps(value, indent=None, sort_keys=False))
+
+
+def print_problems(exc: ConfigError, stream: Any = None) -> None:
+    """A checked file's problems: a count, then one a line (on stderr unless ``stream``)."""
+    out = stream if stream is not None else sys.stderr
+    count = len(exc.problems)
+    print(f"{exc.source}: {count} problem{'s' if count != 1 else ''}", file=out)
+    for problem in exc.problems:
+        print(f"  {problem}", file=out)
 
 
 def _number(value: str, allowed: Callable[[float], bool], expected: str) -> float:

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
-from whexar.cli.common import Commands
+from whexar.cli.common import Commands, print_problems
 from whexar.errors import ConfigError
 
 
@@ -16,10 +17,7 @@ def _config_check(args: argparse.Namespace) -> int:
     try:
         load_config(args.file)
     except ConfigError as exc:
-        count = len(exc.problems)
-        print(f"{exc.source}: {count} problem{'s' if count != 1 else ''}")
-        for problem in exc.problems:
-            print(f"  {problem}")
+        print_problems(exc, sys.stdout)
         return 1
     print("ok")
     return 0

@@ -52,6 +52,7 @@ from whexar.cli.common import (
     StatusLine,
     default_recording,
     print_json,
+    print_problems,
     seconds,
     tcp_port,
 )
@@ -217,12 +218,7 @@ def _experiments(args: argparse.Namespace) -> int:
     """``--experiments``: the thesis's experiments as a campaign, the table of figures."""
     from whexar.campaign import load_campaign, run_campaign
     from whexar.campaign.experiments import figures, table_text
-    from whexar.cli.campaign import (
-        FAILED_STATUS,
-        CampaignProgress,
-        print_problems,
-        summary_lines,
-    )
+    from whexar.cli.campaign import FAILED_STATUS, CampaignProgress, summary_lines
 
     alone = ("video", "view", "live", "record", "duration", "seed")
     given = [f"--{name}" for name in alone if getattr(args, name) not in (None, False)]
@@ -264,10 +260,7 @@ def _sim(args: argparse.Namespace) -> int:
     try:
         scenario = load_scenario(args.scenario)
     except ConfigError as exc:
-        count = len(exc.problems)
-        print(f"{exc.source}: {count} problem{'s' if count != 1 else ''}", file=sys.stderr)
-        for problem in exc.problems:
-            print(f"  {problem}", file=sys.stderr)
+        print_problems(exc)
         return 1
     scenario = scenario.with_overrides(duration_s=args.duration, seed=args.seed)
     recorder = None

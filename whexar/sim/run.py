@@ -86,10 +86,20 @@ class Sample:
     event: str = ""
     """The latest event of the run, as a short line (empty until there is one)."""
 
+    @property
+    def tilt(self) -> float:
+        """The body's tilt (rad): the larger of |roll| and |pitch|."""
+        return max(abs(self.roll), abs(self.pitch))
+
 
 TRAVEL_STEP_S: Final = 1.0
 """The path is measured between points this far apart: a gait sways the body sideways and
 back once a cycle, and that sway is not distance travelled."""
+
+
+def energy_j(samples: Sequence[Sample]) -> float:
+    """Electric energy (J) over the samples: their power integrated by the trapezoid rule."""
+    return sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(samples))
 
 
 def travelled(samples: Sequence[Sample]) -> float:
@@ -120,12 +130,19 @@ class SimResult:
     """The MCAP file the run was recorded into, if it was."""
     recorder_stats: RecorderStats | None = None
     """What the recorder did (its costs, what it dropped), if the run was recorded."""
+    _summary: dict[str, Any] | None = field(default=None, init=False, repr=False, compare=False)
 
     def summary(self) -> dict[str, Any]:
-        """The figures of ``whexar sim --json``."""
+        """The figures of ``whexar sim --json`` (worked out once: a campaign's metrics ask
+        for several, and each pass walks the whole message log and hashes the world)."""
+        if self._summary is None:
+            self._summary = self._figures()
+        return dict(self._summary)
+
+    def _figures(self) -> dict[str, Any]:
         s = self.samples
         distance = travelled(s)
-        energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(s))
+        energy = energy_j(s)
         states = self.run.log.messages("locomotion", of=LocomotionState)
         moving = [x for x in states if x.activity in ("walking", "riding", "hybrid")]
         moving_s = len(moving) * (states[1].t - states[0].t) if len(states) > 1 else 0.0
@@ -134,7 +151,7 @@ class SimResult:
         falls = 0
         fallen = False
         for x in s:
-            tilted = max(abs(x.roll), abs(x.pitch)) > FALLEN_TILT_RAD
+            tilted = x.tilt > FALLEN_TILT_RAD
             if tilted and not fallen:
                 falls += 1
             fallen = tilted
@@ -415,6 +432,7 @@ __all__ = [
     "SAMPLE_PERIOD_S",
     "Sample",
     "SimResult",
+    "energy_j",
     "run_recorder",
     "seated_angles",
     "sim_graph",
