@@ -12,11 +12,17 @@ without a recording and as many times with one, alternately, so that both see
 the machine in the same state:
 
 * **overhead_pct** — the process's CPU time with a recording over that without,
-  less one, the least of each (a busy machine only ever adds): the share of the
-  runtime's CPU the recorder adds (handing over, encoding, writing);
-* **max_cycle_delay_ms** — the longest single write of the recorder (its p99
-  beside it): it writes between cycles as on the robot
-  (:meth:`~whexar.record.writer.Recorder.run`, every
+  less one, the median over the pairs (each pair run back to back: the machine's
+  load drifts by a quarter from one minute to the next, and a recording process
+  busy on the other core slows this one a little through the shared caches): the
+  share of the runtime's CPU the recorder adds. The recording is ``whexar sim``'s, written by a
+  process of its own (:class:`~whexar.record.sidecar.RecorderProcess`): the runtime
+  hands over and packs;
+* **writer_process_cpu_pct** — that process's CPU (start-up included) against the
+  same runtime CPU: what recording costs the machine besides, on another core;
+* **max_cycle_delay_ms** — the longest single hand-over between cycles (its p99
+  beside it): the runtime packs and sends between cycles as on the robot
+  (:meth:`~whexar.record.sidecar.RecorderProcess.run`, every
   :data:`~whexar.record.writer.WRITE_PERIOD_S`, at most
   :data:`~whexar.record.writer.WRITE_BUDGET_S` at a time), so that is the
   longest a cycle can wait for it. Writes during which Python's garbage
@@ -34,6 +40,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import gc
+import statistics
 import tempfile
 import time
 from collections.abc import Iterator
@@ -42,46 +49,43 @@ from typing import Any, Final
 
 from whexar.bench import Figure, Progress, Report
 from whexar.bench import replay as replay_bench
-from whexar.record.writer import Recorder
+from whexar.record.sidecar import RecorderProcess
 from whexar.sim.scenario import DEFAULT_SCENARIO, load_scenario
 
 OVERHEAD_TARGET_PCT: Final = 5.0
 DELAY_TARGET_MS: Final = 1.0
 BENCH_SECONDS: Final = 20.0
-REPEATS: Final = 3
+REPEATS: Final = 5
 
 
 @contextlib.contextmanager
 def _timed_writes(durations: list[float], collected: list[float] | None = None) -> Iterator[None]:
-    """Time every write between cycles (``write_pending`` with a budget) of every
-    recorder while the block runs; the class's method is restored after it. A write
-    during which the garbage collector ran goes to ``collected`` instead, if given."""
-    original = Recorder.write_pending
-    collections = [0]
+    """Time every hand-over between cycles (``write_pending`` with a budget) of every
+    recording process while the block runs; the class's method is restored after it. A
+    hand-over during which the garbage collector ran goes to ``collected`` instead, if
+    given."""
+    original = RecorderProcess.write_pending
 
-    def count(phase: str, info: dict[str, int]) -> None:
-        if phase == "start":
-            collections[0] += 1
+    def collections() -> int:  # read per write: a gc.callbacks hook would run per collection
+        return sum(generation["collections"] for generation in gc.get_stats())
 
     @functools.wraps(original)
-    def timed(self: Recorder, budget_s: float | None = None) -> int:
-        before = collections[0]
+    def timed(self: RecorderProcess, budget_s: float | None = None) -> int:
+        before = collections()
         start = time.perf_counter()
         try:
             return original(self, budget_s)
         finally:
             if budget_s is not None:
                 took = time.perf_counter() - start
-                gc_ran = collections[0] != before and collected is not None
+                gc_ran = collections() != before and collected is not None
                 (collected if gc_ran and collected is not None else durations).append(took)
 
-    Recorder.write_pending = timed  # type: ignore[method-assign]
-    gc.callbacks.append(count)
+    RecorderProcess.write_pending = timed  # type: ignore[method-assign]
     try:
         yield
     finally:
-        gc.callbacks.remove(count)
-        Recorder.write_pending = original  # type: ignore[method-assign]
+        RecorderProcess.write_pending = original  # type: ignore[method-assign]
 
 
 def measure(
@@ -94,6 +98,7 @@ def measure(
     recorded: list[float] = []
     writes: list[float] = []
     collected: list[float] = []
+    writer: list[float] = []
     size = 0
     sim_seconds = seconds
     with tempfile.TemporaryDirectory() as folder:
@@ -103,17 +108,26 @@ def measure(
             chosen.run()
             plain.append(time.process_time() - cpu)
             path = Path(folder) / f"bench-{k}.mcap"
-            with _timed_writes(writes, collected):
-                cpu = time.process_time()
-                result = chosen.run(record=path)
-                recorded.append(time.process_time() - cpu)
+            cpu = time.process_time()
+            result = chosen.run(record=path)
+            recorded.append(time.process_time() - cpu)
             size = path.stat().st_size
+            if result.recorder_stats is not None:
+                writer.append(result.recorder_stats.process_cpu_s)
             sim_seconds = max(result.run.end_time, seconds)
-    # The least CPU each took: what the code costs, without what the machine added.
-    without, with_ = min(plain), min(recorded)
+        # The hand-overs timed in a run of their own: timing costs CPU too.
+        say("a recorded run with every hand-over timed…")
+        with _timed_writes(writes, collected):
+            chosen.run(record=Path(folder) / "bench-timed.mcap")
+    ratios = sorted(100.0 * (w / p - 1.0) for p, w in zip(plain, recorded, strict=True))
+    without, with_ = statistics.median(plain), statistics.median(recorded)
     writes.sort()
     return {
-        "overhead_pct": round(100.0 * (with_ / without - 1.0), 2),
+        "overhead_pct": round(statistics.median(ratios), 2),
+        "overhead_pct_range": (round(ratios[0], 2), round(ratios[-1], 2)),
+        "writer_process_cpu_pct": round(
+            100.0 * statistics.median(writer) / without if writer else 0.0, 2
+        ),
         "max_cycle_delay_ms": round(1000.0 * writes[-1], 3) if writes else 0.0,
         "p99_cycle_delay_ms": round(1000.0 * writes[int(0.99 * (len(writes) - 1))], 3)
         if writes
@@ -143,7 +157,7 @@ def run(progress: Progress = None) -> Report:
         ),
         Figure(
             "max_cycle_delay_ms",
-            "longest write between cycles (no GC in it)",
+            "longest hand-over between cycles (no GC in it)",
             found["max_cycle_delay_ms"],
             "ms",
             DELAY_TARGET_MS,
@@ -159,8 +173,12 @@ def run(progress: Progress = None) -> Report:
     ]
     notes = [
         f"{found['sim_seconds']:g} s simulated: {found['cpu_s_without']:g} s of CPU "
-        f"without a recording, {found['cpu_s_with']:g} s with one (least of {REPEATS})",
-        f"writes between cycles: p99 {found['p99_cycle_delay_ms']:.3f} ms, "
+        f"without a recording, {found['cpu_s_with']:g} s with one (medians of {REPEATS}); "
+        f"the pairs' overheads ranged over {found['overhead_pct_range'][0]:g} to "
+        f"{found['overhead_pct_range'][1]:g} %",
+        f"the recording process, on another core: {found['writer_process_cpu_pct']:g} % "
+        "of the runtime's CPU besides (its start-up included)",
+        f"hand-overs between cycles: p99 {found['p99_cycle_delay_ms']:.3f} ms, "
         f"longest {found['max_cycle_delay_ms']:.3f} ms; {found['writes_with_gc']} writes had "
         "a garbage collection in them (the process's, whoever allocated), the longest "
         f"{found['max_cycle_delay_with_gc_ms']:.3f} ms",
@@ -174,5 +192,6 @@ def run(progress: Progress = None) -> Report:
         "max_cycle_delay_ms": found["max_cycle_delay_ms"],
         "replay_realtime_factor": replayed["replay_realtime_factor"],
         "bytes_per_s": found["bytes_per_s"],
+        "writer_process_cpu_pct": found["writer_process_cpu_pct"],
     }
     return Report("record", items, notes, data=data)

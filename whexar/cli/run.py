@@ -40,7 +40,7 @@ from whexar.runtime.wiring import EVENTS_CHANNEL
 if TYPE_CHECKING:
     from whexar.config import RobotConfig
     from whexar.record.live import LiveView
-    from whexar.record.writer import Recorder
+    from whexar.record.sidecar import AnyRecorder
     from whexar.runtime.channels import Observer
     from whexar.runtime.wiring import Graph
 
@@ -271,7 +271,7 @@ def _run(args: argparse.Namespace) -> int:
     return code
 
 
-def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> Recorder:
+def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> AnyRecorder:
     """The run's recorder: the wiring file and the robot configuration attached, the
     command line in its metadata; it feeds the live view, and records to nowhere with
     ``--no-record``."""

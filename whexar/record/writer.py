@@ -214,6 +214,9 @@ class RecorderStats:
     """Wall seconds spent in :meth:`Recorder.write_pending` and :meth:`Recorder.close`."""
     flushes: int
     """Chunks closed and flushed on time (``flush_period_s``)."""
+    process_cpu_s: float = 0.0
+    """CPU seconds of the recording process, for a recorder in a process of its own
+    (:class:`~whexar.record.sidecar.RecorderProcess`, once closed); 0 otherwise."""
 
 
 class Recorder:
@@ -301,7 +304,7 @@ class Recorder:
         self._schema_texts: dict[int, tuple[str, bytes]] = {}
         self._routes: dict[tuple[str, type], tuple[int, MessageCodec[Any]]] = {}
         self._topics: dict[str, int] = {}
-        self._failed_types: set[tuple[str, type]] = set()
+        self._failed_types: set[tuple[str, str]] = set()
         self._messages = self._links = 0
         self._dropped = self._dropped_logged = self._errors = 0
         self._max_pending = 0
@@ -539,12 +542,27 @@ class Recorder:
         self._topics[topic] = known
         return known
 
+    def not_recorded(self, channel: str, type_name: str, t: float, reason: str) -> None:
+        """Count a message of ``type_name`` on ``channel`` at ``t`` that could not be
+        recorded; the first of each (channel, type) is logged on ``/log`` with ``reason``.
+        (The recording process's way to report what its runtime could not hand over.)"""
+        self._not_recorded(channel, type_name, time_ns(t), reason)
+
+    def dropped_elsewhere(self, count: int) -> None:
+        """Count ``count`` entries dropped before they reached this recorder (a recording
+        process's runtime found its pipe full); logged and stored as :meth:`close` does
+        its own."""
+        self._dropped += count
+
     def _encoding_failed(self, channel: str, cls: type, ns: int, exc: Exception) -> None:
+        self._not_recorded(channel, cls.__name__, ns, str(exc))
+
+    def _not_recorded(self, channel: str, type_name: str, ns: int, reason: str) -> None:
         self._errors += 1
-        if (channel, cls) in self._failed_types:
+        if (channel, type_name) in self._failed_types:
             return
-        self._failed_types.add((channel, cls))
-        text = f"recorder: cannot encode {cls.__name__} on /{channel} (not recorded): {exc}"
+        self._failed_types.add((channel, type_name))
+        text = f"recorder: cannot encode {type_name} on /{channel} (not recorded): {reason}"
         self._add(self._topic("/log"), ns, foxglove.log_entry(ns, 4, text, "recorder"))
 
     def _log_dropped(self) -> None:

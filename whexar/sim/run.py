@@ -56,6 +56,7 @@ from whexar.testing.harness import Harness, RunResult, run_actors
 from whexar.testing.walk import walk_graph
 
 if TYPE_CHECKING:
+    from whexar.record.sidecar import AnyRecorder
     from whexar.record.writer import LiveSink, Recorder, RecorderStats
 
 Quiet = (ActorStarting, ActorReady, AccelImplausible, AccelPlausible)
@@ -387,7 +388,7 @@ def _recorder(
     graph: Mapping[str, Any],
     metadata: Mapping[str, str] | None,
     live: LiveSink | None = None,
-) -> Recorder:
+) -> AnyRecorder:
     """The recorder of a simulated run: its wiring and URDF attached too."""
     from whexar.record.writer import URDF_ATTACHMENT
     from whexar.sim.urdf import build_urdf
@@ -409,11 +410,12 @@ def run_recorder(
     attachments: Mapping[str, str | bytes],
     metadata: Mapping[str, str],
     live: LiveSink | None = None,
-) -> Recorder:
+) -> AnyRecorder:
     """A recorder for a run of robot ``cfg`` (read from file ``config``, ``None`` for the
     built-in): ``attachments`` and ``metadata`` as given, plus what a replay needs —
     the configuration file and every value the run used — and the URDF on
     ``/robot_description``. ``whexar sim`` and ``whexar run`` both record through it."""
+    from whexar.record.sidecar import RecorderProcess
     from whexar.record.writer import CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT, Recorder
     from whexar.sim.urdf import build_urdf
 
@@ -423,7 +425,13 @@ def run_recorder(
     }
     if config is not None:
         attached[CONFIG_ATTACHMENT] = Path(config).read_bytes()
-    recorder = Recorder(path, metadata=metadata, attachments=attached, live=live)
+    # Written by a process of its own (the runtime only packs), unless a live view
+    # needs the messages here: see whexar.record.sidecar.
+    recorder: Recorder | RecorderProcess = (
+        RecorderProcess(path, metadata=metadata, attachments=attached)
+        if live is None
+        else Recorder(path, metadata=metadata, attachments=attached, live=live)
+    )
     recorder.robot_description(build_urdf(cfg))  # built once per configuration
     return recorder
 
