@@ -18,12 +18,16 @@ the machine in the same state:
   share of the runtime's CPU the recorder adds. The recording is ``whexar sim``'s, written by a
   process of its own (:class:`~whexar.record.sidecar.RecorderProcess`): the runtime
   hands over and packs;
+* **direct_pct** — the same share counted directly, free of the machine's drift:
+  in a run of its own, the packing and sending between cycles (timed) and the
+  hand-overs (counted, at the unit cost measured after it); what it leaves out is
+  the recorder's wake-ups and its effect on the caches, which the median above has;
 * **writer_process_cpu_pct** — that process's CPU (start-up included) against the
   same runtime CPU: what recording costs the machine besides, on another core;
 * **max_cycle_delay_ms** — the longest single hand-over between cycles (its p99
   beside it): the runtime packs and sends between cycles as on the robot
   (:meth:`~whexar.record.sidecar.RecorderProcess.run`, every
-  :data:`~whexar.record.writer.WRITE_PERIOD_S`, at most
+  :data:`~whexar.record.sidecar.PACK_PERIOD_S`, at most
   :data:`~whexar.record.writer.WRITE_BUDGET_S` at a time), so that is the
   longest a cycle can wait for it. Writes during which Python's garbage
   collector ran are counted apart (**max_cycle_delay_with_gc_ms**,
@@ -43,28 +47,35 @@ import gc
 import statistics
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Final
 
 from whexar.bench import Figure, Progress, Report
 from whexar.bench import replay as replay_bench
 from whexar.record.sidecar import RecorderProcess
+from whexar.runtime.messages import Heartbeat
 from whexar.sim.scenario import DEFAULT_SCENARIO, load_scenario
 
 OVERHEAD_TARGET_PCT: Final = 5.0
 DELAY_TARGET_MS: Final = 1.0
-BENCH_SECONDS: Final = 20.0
-REPEATS: Final = 5
+BENCH_SECONDS: Final = 10.0
+REPEATS: Final = 8
 
 
 @contextlib.contextmanager
-def _timed_writes(durations: list[float], collected: list[float] | None = None) -> Iterator[None]:
+def _timed_writes(
+    durations: list[float], collected: list[float] | None = None, calls: list[int] | None = None
+) -> Iterator[None]:
     """Time every hand-over between cycles (``write_pending`` with a budget) of every
-    recording process while the block runs; the class's method is restored after it. A
-    hand-over during which the garbage collector ran goes to ``collected`` instead, if
-    given."""
+    recording process while the block runs, and count the hand-overs (``calls[0]``);
+    the class's methods are restored after it. A write during which the garbage
+    collector ran goes to ``collected`` instead, if given."""
     original = RecorderProcess.write_pending
+    handing = {
+        name: getattr(RecorderProcess, name) for name in ("__call__", "link_bytes", "transform")
+    }
+    counted = calls if calls is not None else [0]
 
     def collections() -> int:  # read per write: a gc.callbacks hook would run per collection
         return sum(generation["collections"] for generation in gc.get_stats())
@@ -81,11 +92,41 @@ def _timed_writes(durations: list[float], collected: list[float] | None = None) 
                 gc_ran = collections() != before and collected is not None
                 (collected if gc_ran and collected is not None else durations).append(took)
 
+    def counting(method: Callable[..., None]) -> Callable[..., None]:
+        @functools.wraps(method)
+        def count(*args: Any) -> None:
+            counted[0] += 1
+            method(*args)
+
+        return count
+
     RecorderProcess.write_pending = timed  # type: ignore[method-assign]
+    for name, method in handing.items():
+        setattr(RecorderProcess, name, counting(method))
     try:
         yield
     finally:
         RecorderProcess.write_pending = original  # type: ignore[method-assign]
+        for name, method in handing.items():
+            setattr(RecorderProcess, name, method)
+
+
+def _handover_s(folder: str, count: int = 50_000) -> float:
+    """CPU seconds of one hand-over (a message; a link's bytes), the mean of both."""
+    recorder = RecorderProcess(Path(folder) / "handover.mcap", max_pending=2 * count)
+    beat = Heartbeat(t=1.0, source="bench", seq=1)
+    data = b"\xff\xff\xfd\x00" * 8
+    pending = recorder._pending
+    took = 0.0
+    for _ in range(count // 100):  # a few hundred pending at a time, as in a run
+        start = time.process_time()
+        for _ in range(100):
+            recorder("beats", beat)
+            recorder.link_bytes("bus", "rx", 1.0, data)
+        took += time.process_time() - start
+        pending.clear()
+    recorder.close()
+    return took / (2 * count)
 
 
 def measure(
@@ -117,14 +158,23 @@ def measure(
             sim_seconds = max(result.run.end_time, seconds)
         # The hand-overs timed in a run of their own: timing costs CPU too.
         say("a recorded run with every hand-over timed…")
-        with _timed_writes(writes, collected):
+        calls = [0]
+        with _timed_writes(writes, collected, calls):
             chosen.run(record=Path(folder) / "bench-timed.mcap")
+        handover = _handover_s(folder)
+    # What the runtime side's own code took in the timed run: packing and sending
+    # (timed) and the hand-overs (counted, at their unit cost).
+    direct = sum(writes) + sum(collected) + calls[0] * handover
     ratios = sorted(100.0 * (w / p - 1.0) for p, w in zip(plain, recorded, strict=True))
     without, with_ = statistics.median(plain), statistics.median(recorded)
     writes.sort()
     return {
         "overhead_pct": round(statistics.median(ratios), 2),
         "overhead_pct_range": (round(ratios[0], 2), round(ratios[-1], 2)),
+        "direct_pct": round(100.0 * direct / statistics.median(plain), 2),
+        "handovers": calls[0],
+        "handover_us": round(1e6 * handover, 3),
+        "packing_s": round(sum(writes) + sum(collected), 4),
         "writer_process_cpu_pct": round(
             100.0 * statistics.median(writer) / without if writer else 0.0, 2
         ),
@@ -176,6 +226,9 @@ def run(progress: Progress = None) -> Report:
         f"without a recording, {found['cpu_s_with']:g} s with one (medians of {REPEATS}); "
         f"the pairs' overheads ranged over {found['overhead_pct_range'][0]:g} to "
         f"{found['overhead_pct_range'][1]:g} %",
+        f"the runtime side's own code, timed and counted: {found['direct_pct']:g} % "
+        f"({found['handovers']} hand-overs at {found['handover_us']:g} µs, "
+        f"{found['packing_s']:g} s packing and sending)",
         f"the recording process, on another core: {found['writer_process_cpu_pct']:g} % "
         "of the runtime's CPU besides (its start-up included)",
         f"hand-overs between cycles: p99 {found['p99_cycle_delay_ms']:.3f} ms, "
@@ -193,5 +246,6 @@ def run(progress: Progress = None) -> Report:
         "replay_realtime_factor": replayed["replay_realtime_factor"],
         "bytes_per_s": found["bytes_per_s"],
         "writer_process_cpu_pct": found["writer_process_cpu_pct"],
+        "direct_pct": found["direct_pct"],
     }
     return Report("record", items, notes, data=data)

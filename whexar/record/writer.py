@@ -29,6 +29,10 @@ What a recording holds
 * ``/links/{link}``: the raw bytes of a device link (``whexar.LinkBytes``);
 * ``/joint_states``, ``/log``, ``/tf``: Foxglove's views (:mod:`whexar.record.foxglove`).
 
+``whexar sim`` and ``whexar run`` run this recorder in a process of its own
+(:mod:`whexar.record.sidecar`), fed over a pipe: the runtime then only hands over and
+packs. In-process, as below, it serves a live view and the tests.
+
 Costs and defaults (measured here: Python 3.11, 2 cores, msgspec 0.23, zstandard 0.25)
 ---------------------------------------------------------------------------------------
 * handing over (``__call__``, :meth:`~Recorder.link_bytes`): 0.2 µs;
