@@ -1,5 +1,6 @@
 """A recording process killed with SIGKILL leaves a file readable up to its last flush
-(at most ``flush_period_s`` before the kill), and `recover` makes it a complete file."""
+(at most ``flush_period_s`` before the kill), and `recover` makes it a complete file; a
+runtime killed beside its recording process leaves a complete file."""
 
 from __future__ import annotations
 
@@ -32,10 +33,15 @@ while True:
 """
 
 
-def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -> None:
+def _kill_after(tmp_path: Path, recorder: str, seconds: float) -> tuple[Path, float]:
+    """Run CHILD with ``recorder`` (``module:Class``), kill it with SIGKILL after
+    ``seconds``; the file's path and the time of the kill."""
     path = tmp_path / "killed.mcap"
     script = tmp_path / "child.py"
-    script.write_text(CHILD)
+    module, name = recorder.split(":")
+    script.write_text(
+        CHILD.replace("whexar.record.writer import Recorder", f"{module} import {name} as Recorder")
+    )
     child = subprocess.Popen(
         [sys.executable, str(script), str(path)],
         stdout=subprocess.PIPE,
@@ -45,14 +51,18 @@ def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -
     try:
         assert child.stdout is not None
         assert child.stdout.readline() == "ready\n"
-        wait_until(monotonic() + 1.5)
+        wait_until(monotonic() + seconds)
         killed_at = monotonic()
         child.send_signal(signal.SIGKILL)
     finally:
         child.kill()
         child.wait(timeout=10)
     assert child.returncode == -signal.SIGKILL
+    return path, killed_at
 
+
+def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -> None:
+    path, killed_at = _kill_after(tmp_path, "whexar.record.writer:Recorder", 1.5)
     recording = Recording(path)
     assert not recording.complete
     assert recording.damage is not None
@@ -66,3 +76,20 @@ def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -
     fixed = recover(path, tmp_path / "fixed.mcap")
     assert fixed.messages == len(times)
     assert Recording(fixed.output).complete
+
+
+def test_a_runtime_killed_beside_its_recording_process_leaves_a_complete_file(
+    tmp_path: Path,
+) -> None:
+    path, killed_at = _kill_after(tmp_path, "whexar.record.sidecar:RecorderProcess", 1.0)
+    # The recording process sees its pipe close and ends the file: summary and footer.
+    deadline = monotonic() + 20.0
+    while not Recording(path).complete and monotonic() < deadline:
+        wait_until(monotonic() + 0.05)
+    recording = Recording(path)
+    assert recording.complete, recording.describe_end()
+    seqs = [r.value.seq for r in recording.records() if r.topic == "/beats"]
+    assert len(seqs) > 200
+    assert seqs == list(range(len(seqs)))
+    last = max(r.value.t for r in recording.records() if r.topic == "/beats")
+    assert 0 <= killed_at - last < 0.1  # all it had packed (every 2 ms), on a busy machine

@@ -53,15 +53,21 @@ import subprocess
 import sys
 import time
 from collections import deque
-from collections.abc import Awaitable, Callable, Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
-from types import TracebackType
 from typing import Any, Final
 
 import msgspec
 
 from whexar.record.encoding import RecordingError, type_path
-from whexar.record.writer import WRITE_BUDGET_S, Recorder, RecorderStats
+from whexar.record.writer import (
+    _LINK,
+    _MESSAGE,
+    _TRANSFORM,
+    HandOver,
+    Recorder,
+    RecorderStats,
+)
 from whexar.runtime.clock import monotonic
 from whexar.runtime.messages import MESSAGE_TYPES, Message
 
@@ -87,10 +93,10 @@ _F_SETPIPE_SZ: Final = getattr(fcntl, "F_SETPIPE_SZ", 1031)
 _FRAME: Final = struct.Struct("<I")  # a frame: its length, then one msgpack array
 
 # Kinds of entries in a frame: (kind, …) arrays.
-_MESSAGE, _LINK, _TRANSFORM, _TYPE, _DESCRIPTION, _FAILED, _DROPPED = range(7)
+_TYPE, _DESCRIPTION, _FAILED, _DROPPED = range(3, 7)  # after the hand-over's three
 
 
-class RecorderProcess:
+class RecorderProcess(HandOver):
     """Records a run into the MCAP file ``path`` from a process of its own (module doc).
 
     ``metadata``, ``attachments`` and ``options`` (``chunk_size``, ``flush_period_s``,
@@ -99,6 +105,8 @@ class RecorderProcess:
     ``max_pending`` bounds the buffer between :meth:`write_pending` calls and
     ``max_unsent_bytes`` the packed frames the pipe has not taken yet.
     """
+
+    period_s = PACK_PERIOD_S
 
     def __init__(
         self,
@@ -171,27 +179,6 @@ class RecorderProcess:
             name = self._declare(cls)
         self._append((_MESSAGE, channel, name, msg))
 
-    def link_bytes(self, link: str, direction: str, t: float, data: bytes) -> None:
-        """Buffer raw bytes of device link ``link``: as :meth:`Recorder.link_bytes`."""
-        if data.__class__ is not bytes:
-            data = bytes(data)  # a bytearray could change before it is packed
-        if len(self._pending) >= self.max_pending:
-            self._drop_oldest()
-        self._append((_LINK, link, direction, t, data))
-
-    def transform(
-        self,
-        t: float,
-        parent: str,
-        child: str,
-        translation: Sequence[float],
-        rotation_xyzw: Sequence[float],
-    ) -> None:
-        """Buffer a pose for ``/tf``: as :meth:`Recorder.transform`."""
-        if len(self._pending) >= self.max_pending:
-            self._drop_oldest()
-        self._append((_TRANSFORM, t, parent, child, tuple(translation), tuple(rotation_xyzw)))
-
     def robot_description(self, urdf: str) -> None:
         """The robot's URDF on ``/robot_description``: as :meth:`Recorder.robot_description`."""
         self._append((_DESCRIPTION, urdf))
@@ -201,13 +188,6 @@ class RecorderProcess:
         self._names[cls] = name
         self._declared.append((_TYPE, name, type_path(cls)))
         return name
-
-    def _drop_oldest(self) -> None:
-        try:
-            self._pending.popleft()
-        except IndexError:
-            return
-        self._dropped += 1
 
     # ------------------------------------------------------------------ packing
 
@@ -250,18 +230,6 @@ class RecorderProcess:
         self._send()
         self._write_s += monotonic() - start
         return done
-
-    async def run(
-        self,
-        sleep: Callable[[float], Awaitable[object]],
-        period_s: float = PACK_PERIOD_S,
-        budget_s: float | None = WRITE_BUDGET_S,
-    ) -> None:
-        """Pack and send every ``period_s``, at most ``budget_s`` at a time, until
-        cancelled: as :meth:`Recorder.run`."""
-        while not self._closed:
-            self.write_pending(budget_s)
-            await sleep(0.0 if self._pending else period_s)
 
     def _pack(self, batch: list[tuple[Any, ...]]) -> bytes:
         try:
@@ -398,17 +366,6 @@ class RecorderProcess:
         if self._broken is not None:
             raise RecordingError(f"recording {self.path} failed: {self._broken}")
         return self.stats
-
-    def __enter__(self) -> RecorderProcess:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 AnyRecorder = Recorder | RecorderProcess

@@ -78,7 +78,7 @@ from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Final, Protocol
+from typing import IO, Any, Final, Protocol, Self
 
 import lz4.frame  # type: ignore[import-untyped]  # no type hints
 import zstandard
@@ -122,6 +122,7 @@ __all__ = [
     "EFFECTIVE_CONFIG_ATTACHMENT",
     "FORMAT",
     "URDF_ATTACHMENT",
+    "HandOver",
     "Recorder",
     "RecorderStats",
 ]
@@ -223,7 +224,86 @@ class RecorderStats:
     (:class:`~whexar.record.sidecar.RecorderProcess`, once closed); 0 otherwise."""
 
 
-class Recorder:
+class HandOver:
+    """The O(1) hand-over both recorders share: (kind, …) tuples appended to a deque of
+    at most ``max_pending`` entries, the oldest dropped and counted past it."""
+
+    max_pending: int
+    _pending: deque[tuple[Any, ...]]
+    _append: Callable[[tuple[Any, ...]], None]
+    _dropped: int
+
+    def link_bytes(self, link: str, direction: str, t: float, data: bytes) -> None:
+        """Buffer raw bytes of device link ``link`` sent (``"tx"``) or received (``"rx"``)
+        at runtime-clock time ``t``; a runtime ``link_observer``."""
+        if data.__class__ is not bytes:
+            data = bytes(data)  # a bytearray could change before it is written
+        if len(self._pending) >= self.max_pending:
+            self._drop_oldest()
+        self._append((_LINK, link, direction, t, data))
+
+    def transform(
+        self,
+        t: float,
+        parent: str,
+        child: str,
+        translation: Sequence[float],
+        rotation_xyzw: Sequence[float],
+    ) -> None:
+        """Buffer the pose of frame ``child`` in ``parent`` at ``t`` for ``/tf``
+        (translation in m, rotation a unit quaternion x, y, z, w)."""
+        if len(self._pending) >= self.max_pending:
+            self._drop_oldest()
+        self._append((_TRANSFORM, t, parent, child, tuple(translation), tuple(rotation_xyzw)))
+
+    def _drop_oldest(self) -> None:
+        try:
+            self._pending.popleft()
+        except IndexError:  # drained by the writer meanwhile
+            return
+        self._dropped += 1
+
+    period_s: float = WRITE_PERIOD_S
+    """How often :meth:`run` writes (each recorder's own)."""
+    _closed: bool
+
+    def write_pending(self, budget_s: float | None = None) -> int:
+        """Write what is pending (each recorder says how); returns how many entries."""
+        raise NotImplementedError
+
+    def close(self) -> RecorderStats:
+        """End the recording (each recorder says how)."""
+        raise NotImplementedError
+
+    async def run(
+        self,
+        sleep: Callable[[float], Awaitable[object]],
+        period_s: float | None = None,
+        budget_s: float | None = WRITE_BUDGET_S,
+    ) -> None:
+        """Write pending entries every ``period_s`` (the recorder's :attr:`period_s` by
+        default), at most ``budget_s`` at a time (``sleep`` is the owner's: the runtime
+        clock's, anyio's …) until cancelled; :meth:`close` stays the owner's."""
+        period = self.period_s if period_s is None else period_s
+        while not self._closed:
+            self.write_pending(budget_s)
+            # More left: let the actors run, then go on (no cycle waits longer than one
+            # budget, and the recorder still keeps up however much there is).
+            await sleep(0.0 if self._pending else period)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class Recorder(HandOver):
     """Records a run into the MCAP file ``path``; a runtime observer (see the module).
 
     ``metadata`` (short strings: robot name, command line …) is stored as MCAP metadata
@@ -327,41 +407,11 @@ class Recorder:
             self._drop_oldest()
         self._append((_MESSAGE, channel, msg))
 
-    def link_bytes(self, link: str, direction: str, t: float, data: bytes) -> None:
-        """Buffer raw bytes of device link ``link`` sent (``"tx"``) or received (``"rx"``)
-        at runtime-clock time ``t``; a runtime ``link_observer``."""
-        if data.__class__ is not bytes:
-            data = bytes(data)  # a bytearray could change before it is written
-        if len(self._pending) >= self.max_pending:
-            self._drop_oldest()
-        self._append((_LINK, link, direction, t, data))
-
-    def transform(
-        self,
-        t: float,
-        parent: str,
-        child: str,
-        translation: Sequence[float],
-        rotation_xyzw: Sequence[float],
-    ) -> None:
-        """Buffer the pose of frame ``child`` in ``parent`` at ``t`` for ``/tf``
-        (translation in m, rotation a unit quaternion x, y, z, w)."""
-        if len(self._pending) >= self.max_pending:
-            self._drop_oldest()
-        self._append((_TRANSFORM, t, parent, child, tuple(translation), tuple(rotation_xyzw)))
-
     def robot_description(self, urdf: str) -> None:
         """Write the robot's URDF on :data:`ROBOT_DESCRIPTION` (``{"data": URDF}``, as
         ROS's ``robot_description``), at the start: Foxglove's URDF layer can read it
         from that topic. Call it once, before the run."""
         self._add(self._topic(ROBOT_DESCRIPTION), 1, json.dumps({"data": urdf}).encode())
-
-    def _drop_oldest(self) -> None:
-        try:
-            self._pending.popleft()
-        except IndexError:  # drained by the writer meanwhile
-            return
-        self._dropped += 1
 
     # ------------------------------------------------------------------ writing
 
@@ -426,21 +476,6 @@ class Recorder:
             self._break(exc)
         self._write_s += monotonic() - start
         return done
-
-    async def run(
-        self,
-        sleep: Callable[[float], Awaitable[object]],
-        period_s: float = WRITE_PERIOD_S,
-        budget_s: float | None = WRITE_BUDGET_S,
-    ) -> None:
-        """Write pending entries every ``period_s``, at most ``budget_s`` at a time
-        (``sleep`` is the owner's: the runtime clock's, anyio's …) until cancelled;
-        :meth:`close` stays the owner's."""
-        while not self._closed:
-            self.write_pending(budget_s)
-            # More left: let the actors run, then go on (no cycle waits longer than one
-            # budget, and the recorder still keeps up however much there is).
-            await sleep(0.0 if self._pending else period_s)
 
     def _write_message(self, channel: str, msg: Message) -> None:
         cls = msg.__class__
@@ -651,17 +686,6 @@ class Recorder:
         if self._broken is not None:
             raise RecordingError(f"recording {self.path} failed: {self._broken}")
         return self.stats
-
-    def __enter__(self) -> Recorder:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 # --------------------------------------------------------------------------- the file
