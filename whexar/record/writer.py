@@ -587,6 +587,11 @@ class Recorder(HandOver):
         (The recording process's way to report what its runtime could not hand over.)"""
         self._not_recorded(channel, type_name, time_ns(t), reason)
 
+    @property
+    def last_t(self) -> float:
+        """The runtime-clock time of the last record written (0 before any)."""
+        return self._mcap.last_ns / 1e9 if self._mcap.last_ns > 1 else 0.0
+
     def dropped_elsewhere(self, count: int) -> None:
         """Count ``count`` entries dropped before they reached this recorder (a recording
         process's runtime found its pipe full); logged and stored as :meth:`close` does
