@@ -13,24 +13,26 @@ cycles :meth:`~RecorderProcess.write_pending` packs what is buffered into msgpac
 as they are, dataclasses by field name) and writes them to a pipe without waiting.
 
 A child process (``python -m whexar.record.sidecar``) reads the frames, rebuilds each
-message as its own type (``msgspec.convert``: floats travel as IEEE doubles, so the
-rebuilt message equals the original) and hands it to a :class:`Recorder` of its own,
+message as its own type (msgspec decodes a frame into typed entries and each message's
+fields with its own type's decoder, 2.9 µs a message; floats travel as IEEE doubles, so
+the rebuilt message equals the original) and hands it to a :class:`Recorder` of its own,
 which encodes, compresses and writes the MCAP file exactly as in-process: the file is
 the same, its bytes too. The child learns a message type by its ``module:QualName``
 the first time one is handed over and imports it; a type it cannot import (defined in
 ``__main__`` or inside a function) is counted and logged on ``/log`` as not recorded.
 
 Why (measured on the course, ``whexar bench record``): writing in-process cost the
-runtime 16–26 % of its CPU, half of it encoding, compressing and indexing, the rest
-its working set slowing the bus, the emulator and the actors beside it. Packing costs
-about 1 % and leaves the rest to another core (a Raspberry Pi 4 has four).
+runtime 20–26 % of its CPU, half of it encoding, compressing and indexing, the rest
+its working set slowing the bus, the emulator and the actors beside it. Here the
+runtime's own share, handing over, packing and sending, is under 2 %; the child takes
+about a quarter of the runtime's CPU on another core (a Raspberry Pi 4 has four).
 
 Crash safety: the child ignores SIGINT and SIGTERM, which a terminal or a service
 manager sends to the whole process group, and ends the file (its summary and footer)
 when the pipe closes, whoever closed it: a runtime killed with SIGKILL leaves a
 complete file, holding everything it had written to the pipe (what it packs every
-:data:`PACK_PERIOD_S`). The child itself flushes every
-``flush_period_s`` as in-process, so if both die the file reads up to its last flush.
+:data:`PACK_PERIOD_S`). The child itself flushes every ``flush_period_s`` as
+in-process, so if both die the file reads up to its last flush.
 
 Bounded memory: the buffer holds ``max_pending`` entries and the unsent frames
 ``max_unsent_bytes`` (a child that cannot keep up, or has not started yet: the pipe
