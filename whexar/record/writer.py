@@ -228,10 +228,13 @@ class HandOver:
     """The O(1) hand-over both recorders share: (kind, …) tuples appended to a deque of
     at most ``max_pending`` entries, the oldest dropped and counted past it."""
 
+    period_s: float = WRITE_PERIOD_S
+    """How often :meth:`run` writes (each recorder's own)."""
     max_pending: int
     _pending: deque[tuple[Any, ...]]
     _append: Callable[[tuple[Any, ...]], None]
     _dropped: int
+    _closed: bool
 
     def link_bytes(self, link: str, direction: str, t: float, data: bytes) -> None:
         """Buffer raw bytes of device link ``link`` sent (``"tx"``) or received (``"rx"``)
@@ -262,10 +265,6 @@ class HandOver:
         except IndexError:  # drained by the writer meanwhile
             return
         self._dropped += 1
-
-    period_s: float = WRITE_PERIOD_S
-    """How often :meth:`run` writes (each recorder's own)."""
-    _closed: bool
 
     def write_pending(self, budget_s: float | None = None) -> int:
         """Write what is pending (each recorder says how); returns how many entries."""
