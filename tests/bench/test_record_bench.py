@@ -15,6 +15,11 @@ def test_the_bench_compares_a_recorded_run_with_a_plain_one() -> None:
     assert found["cpu_s_without"] > 0
     assert 0 < found["max_cycle_delay_ms"] < 1000
     assert found["bytes_per_s"] > 10_000  # 42 servos at about 100 Hz, and their bytes
+    # The runtime's own share, counted: every hand-over and every packing between cycles.
+    assert found["handovers"] > 1000
+    assert 0 < found["handover_us"] < 100
+    assert 0 < found["direct_pct"] < 100
+    assert found["writer_process_cpu_pct"] > 0  # the recording process did the writing
 
 
 def test_the_replay_bench_replays_a_recorded_run_as_fast_as_it_goes() -> None:

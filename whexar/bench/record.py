@@ -8,8 +8,8 @@ What is measured
 ----------------
 The first :data:`BENCH_SECONDS` of the ``course`` scenario, the full runtime and
 the physics on virtual time (as ``whexar bench sim``), :data:`REPEATS` times
-without a recording and as many times with one, alternately, so that both see
-the machine in the same state:
+without a recording and as many times with one, in pairs (every other pair
+recorded first), so that both see the machine in the same state:
 
 * **overhead_pct** — the process's CPU time with a recording over that without,
   less one, the median over the pairs (each pair run back to back: the machine's
@@ -144,18 +144,19 @@ def measure(
     sim_seconds = seconds
     with tempfile.TemporaryDirectory() as folder:
         for k in range(repeats):
-            say(f"run {k + 1}/{repeats}: without a recording, then with one…")
-            cpu = time.process_time()
-            chosen.run()
-            plain.append(time.process_time() - cpu)
-            path = Path(folder) / f"bench-{k}.mcap"
-            cpu = time.process_time()
-            result = chosen.run(record=path)
-            recorded.append(time.process_time() - cpu)
-            size = path.stat().st_size
-            if result.recorder_stats is not None:
-                writer.append(result.recorder_stats.process_cpu_s)
-            sim_seconds = max(result.run.end_time, seconds)
+            # Every other pair in the other order: a drifting machine favours neither.
+            recorded_first = k % 2 == 1
+            say(f"pair {k + 1}/{repeats}: with and without a recording…")
+            for record in (recorded_first, not recorded_first):
+                path = Path(folder) / f"bench-{k}.mcap" if record else None
+                cpu = time.process_time()
+                result = chosen.run(record=path)
+                (recorded if record else plain).append(time.process_time() - cpu)
+                if path is not None:
+                    size = path.stat().st_size
+                    if result.recorder_stats is not None:
+                        writer.append(result.recorder_stats.process_cpu_s)
+                    sim_seconds = max(result.run.end_time, seconds)
         # The hand-overs timed in a run of their own: timing costs CPU too.
         say("a recorded run with every hand-over timed…")
         calls = [0]
