@@ -46,11 +46,12 @@ Costs and defaults (measured here: Python 3.11, 2 cores, msgspec 0.23, zstandard
 * the walking graph's first 20 s of course (2,300 records per simulated second, 0.94 MB
   of JSON) cost 13.6 ms of CPU per simulated second to write, measured offline from a
   captured run (was 38 ms), against about 175 ms for the runtime and the physics:
-  ``whexar bench record`` measured 15–16 % (was 35–40 %), still above the 5 % the issue
-  asks. Where it goes: compressing 0.94 MB/s of JSON (zstd 1.8 ms/s, lz4 0.95 but 60 %
-  larger), the JSON itself (about 3 ms/s), and per-record Python work. The lever left is
-  a binary encoding (CDR or protobuf) of the high-rate types (``LegState`` 650/s,
-  ``JointGoals`` 380/s, ``ServoStates`` 110/s): less to encode and less to compress;
+  in-process, ``whexar bench record`` measured 16–26 % (was 35–40 %), above the 5 % the
+  issue asks: hence the recording process (:mod:`whexar.record.sidecar`), which leaves
+  the runtime under 2 %. Where the writing goes: compressing 0.94 MB/s of JSON (zstd
+  1.8 ms/s, lz4 0.95 but 60 % larger), the JSON itself (about 3 ms/s), and per-record
+  Python work. A binary encoding (CDR or protobuf) of the high-rate types (``LegState``
+  650/s, ``JointGoals`` 380/s, ``ServoStates`` 110/s) would shrink it further;
 * ``compression="zstd"`` (default): 215 kB per simulated second, 37 kB of it message
   indexes (16 bytes a message, uncompressed as MCAP wants them); lz4: about 310 kB;
 * ``chunk_size=32 KiB``: a chunk's close (compression, CRC, indexes) is the longest part
