@@ -262,7 +262,7 @@ class RecorderProcess(HandOver):
         return True
 
     def _send(self) -> None:
-        """Write to the pipe what it takes now."""
+        """Write to the pipe what it takes now (all of it once the pipe blocks)."""
         out = self._out
         try:
             while out:
@@ -334,15 +334,9 @@ class RecorderProcess(HandOver):
             return self.stats
         self.write_pending()
         self._closed = True
-        if self._broken is None:
-            os.set_blocking(self._fd, True)
-            try:
-                while self._out:
-                    view = self._out.popleft()
-                    while view:
-                        view = view[os.write(self._fd, view) :]
-            except OSError as exc:
-                self._gone(exc)
+        os.set_blocking(self._fd, True)  # the rest now, waiting for the child to take it
+        while self._out and self._broken is None:
+            self._send()
         try:
             report, _ = self._child.communicate(timeout=CLOSE_TIMEOUT_S)
         except subprocess.TimeoutExpired:
