@@ -34,18 +34,21 @@ import heapq
 import io
 import os
 import struct
+import zlib
 from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Final
 
+import lz4.frame
+import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Attachment as McapAttachment
 from mcap.records import Channel, Chunk, Footer, Header, Metadata, Schema
 from mcap.records import Message as McapMessage
-from mcap.stream_reader import breakup_chunk
+from mcap.stream_reader import CRCValidationError, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from whexar import __version__
@@ -348,9 +351,20 @@ class Recording:
         heap: list[tuple[int, int, int, bytes]] = []
         seq = 0
         wanted = None if topics is None else set(topics)
-        for i, records in self._readable():
+        # Messages of channels not wanted are skipped in the chunk, unread.
+        keep: dict[int, bool] = {}
+        for i, records in self._readable(keep, wanted):
             for record in records:
-                if isinstance(record, McapMessage):
+                if type(record) is tuple:
+                    item = (record[0], seq, record[1], record[2])
+                    seq += 1
+                    if file_order:
+                        made = self._made(item, channels, decode)
+                        if made is not None:
+                            yield made
+                        continue
+                    heapq.heappush(heap, item)
+                elif isinstance(record, McapMessage):
                     item = (record.log_time, seq, record.channel_id, record.data)
                     seq += 1
                     if file_order:
@@ -373,27 +387,44 @@ class Recording:
             if made is not None:
                 yield made
 
-    def _readable(self) -> Iterator[tuple[int, list[Any]]]:
+    def _readable(
+        self, keep: dict[int, bool] | None = None, wanted: set[str] | None = None
+    ) -> Iterator[tuple[int, list[Any]]]:
         """Each unit's records (with its index), in file order, up to the first that
-        cannot be read: that one ends the readable part (:attr:`damage`)."""
+        cannot be read: that one ends the readable part (:attr:`damage`).
+
+        With ``keep`` (channel id → wanted, filled as channels are read), a chunk's
+        messages come as ``(log_time, channel_id, data)`` tuples (:func:`_chunk_records`),
+        only those of channels whose topic is in ``wanted`` (all with ``None``).
+        """
         last_ns: int | None = None
         with open(self.path, "rb") as f:
             for i, unit in enumerate(self._units):
                 try:
-                    records = self._unit_records(f, unit)
+                    records = self._unit_records(f, unit, keep, wanted)
                 except Exception as exc:  # zstd, lz4, CRC, struct: each has its own error
                     self._damaged(unit.offset, last_ns, f"a chunk cannot be read ({_why(exc)})")
                     return
                 yield i, records
                 last_ns = max(last_ns or 0, unit.end) if unit.end != _NEVER else last_ns
 
-    def _unit_records(self, f: IO[bytes], unit: _Unit) -> list[Any]:
+    def _unit_records(
+        self,
+        f: IO[bytes],
+        unit: _Unit,
+        keep: dict[int, bool] | None = None,
+        wanted: set[str] | None = None,
+    ) -> list[Any]:
         if unit.record is not None:
+            if keep is not None and isinstance(unit.record, Channel):
+                keep[unit.record.id] = wanted is None or unit.record.topic in wanted
             return [unit.record]
         f.seek(unit.offset + _HEAD.size)
         body = f.read(unit.length - _HEAD.size)
         chunk = Chunk.read(_stream(body))
-        return breakup_chunk(chunk, validate_crc=True)
+        if keep is None:
+            return breakup_chunk(chunk, validate_crc=True)
+        return _chunk_records(chunk, keep, wanted)
 
     def _channel(
         self,
@@ -451,6 +482,64 @@ _READ: dict[int, Callable[[bytes], Any]] = {
     Opcode.CHANNEL: lambda b: Channel.read(_stream(b)),
     Opcode.MESSAGE: lambda b: McapMessage.read(_stream(b), len(b)),
 }
+
+
+_MESSAGE: Final = struct.Struct("<HIQ")
+"""A Message record's start: channel id, sequence, log time; publish time (8) follows,
+then the data (MCAP spec, "Message")."""
+_MESSAGE_DATA: Final = _MESSAGE.size + 8
+
+
+def _chunk_records(chunk: Chunk, keep: dict[int, bool], wanted: set[str] | None) -> list[Any]:
+    """A chunk's records for :meth:`Recording.records`: schemas and channels as the
+    ``mcap`` library reads them, each message of a kept channel as ``(log_time,
+    channel_id, data)``, the others skipped unread.
+
+    ``breakup_chunk`` builds a ``Message`` through a byte stream for every record, which
+    costs more than everything else a replay does with the file; this walks the same
+    records with ``struct`` (the same decompression and CRC check, from the library).
+    """
+    data = _decompressed(chunk)
+    size = len(data)
+    out: list[Any] = []
+    head, message = _HEAD.unpack_from, _MESSAGE.unpack_from
+    pos = 0
+    while pos < size:
+        opcode, length = head(data, pos)
+        start = pos + _HEAD.size
+        pos = start + length
+        if pos > size:
+            raise McapError(f"a record runs {pos - size} bytes past the end of its chunk")
+        if opcode == Opcode.MESSAGE:
+            if length < _MESSAGE_DATA:
+                raise McapError(f"a message record of {length} bytes")
+            channel_id, _, log_time = message(data, start)
+            if keep.get(channel_id, True):  # a channel not read yet: _made drops it
+                out.append((log_time, channel_id, data[start + _MESSAGE_DATA : pos]))
+        elif opcode == Opcode.CHANNEL:
+            channel = Channel.read(_stream(data[start:pos]))
+            keep[channel.id] = wanted is None or channel.topic in wanted
+            out.append(channel)
+        elif opcode == Opcode.SCHEMA:
+            out.append(Schema.read(_stream(data[start:pos])))
+    return out
+
+
+def _decompressed(chunk: Chunk) -> bytes:
+    """A chunk's records, decompressed and checked against its CRC as
+    ``mcap.stream_reader.get_chunk_data_stream`` does."""
+    if chunk.compression == "zstd":
+        data: bytes = zstandard.decompress(chunk.data, chunk.uncompressed_size)
+    elif chunk.compression == "lz4":
+        data = lz4.frame.decompress(chunk.data)
+    elif chunk.compression == "":
+        data = chunk.data
+    else:
+        raise McapError(f"unknown compression {chunk.compression!r}")
+    crc = chunk.uncompressed_crc
+    if crc != 0 and zlib.crc32(data) != crc:
+        raise CRCValidationError(expected=crc, actual=zlib.crc32(data), record=chunk)
+    return data
 
 
 def _stream(data: bytes) -> ReadDataStream:
