@@ -4,6 +4,7 @@ recording message for message; a changed threshold is found and named."""
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
@@ -215,6 +216,22 @@ def test_the_comparison_names_the_field() -> None:
     )
     text = Divergence("message", "tilt", 1.0, "BodyTilt.pitch", "0.2", "0.25").describe()
     assert text.startswith("diverged at t = 1.000000 s on tilt: BodyTilt.pitch differs")
+
+
+def test_equal_messages_compare_at_once_and_every_field_counts() -> None:
+    """``compare`` first asks ``==``: what it finds equal must be what the field walk
+    finds equal, so no message type may leave a field out of ``==``; NaN, and int
+    against float, still go through the walk."""
+    import dataclasses
+
+    from whexar.runtime.messages import MESSAGE_TYPES
+
+    for name, kind in MESSAGE_TYPES.items():
+        skipped = [f.name for f in dataclasses.fields(kind) if not f.compare]
+        assert not skipped, f"{name}: fields left out of ==: {skipped}"
+    assert compare((1.0, math.nan), (1.0, math.nan)) is None
+    assert compare({"a": [1, 2.0]}, {"a": [1.0, 2]}) is None
+    assert compare([1], (1,)) == ("", [1], (1,))
 
 
 def test_the_command_line_tolerance_is_the_replays() -> None:
