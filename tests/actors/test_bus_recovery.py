@@ -9,6 +9,7 @@ left with (the emulator's control tables).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from itertools import pairwise
 from pathlib import Path
 from typing import Any
 
@@ -207,6 +208,31 @@ def test_silent_tarsus_is_degraded_others_read_then_it_recovers_restored(
     assert any(st.degraded == (sid,) for st in stats if degraded.t < st.t < recovered.t)
     assert stats[-1].degraded == ()
     assert stats[-1].timeouts == 5
+
+
+def test_a_servo_read_a_few_times_a_second_is_asked_every_cycle_once_it_fails(
+    chain: ServoChain,
+) -> None:
+    """The default plan asks a wheel servo only in its health reads (every 0.6 s at most),
+    but ``degrade_after`` counts cycles for it too: once a read of it fails it is asked in
+    every cycle, and degraded 5 cycles later, not 5 health reads (2 s and more) later."""
+    wheel = servo_id(2, "wheel")
+    inject(chain, Fault(kind="silent", ids=[wheel], at_s=0.5))
+    result = run(graph(), duration=2.5)
+    assert result.exit_code == 0  # a wheel is not critical: the robot goes on
+    events = servo_events(result, wheel)
+    assert names(events) == ["ServoFault"] * 5 + ["ServoDegraded"]
+    faults = [e for e in events if isinstance(e, ServoFault)]
+    # The first failed read is a health read, at most 0.6 s after the fault …
+    assert 0.5 <= faults[0].t <= 1.15
+    # … then one a cycle: each such cycle waits out the SDK's packet timeout twice (34 ms
+    # with its 16 ms latency timer, then the retry), where a health read comes every 0.6 s.
+    gaps = [b.t - a.t for a, b in pairwise(faults)]
+    assert max(gaps) < 0.1, gaps
+    assert events[-1].t - faults[0].t < 0.4
+    # The others of its health reads kept their turns: every servo was still read.
+    health = [h for h in result.messages("health", of=ServoHealth) if h.t > events[-1].t]
+    assert {h.servo_id for h in health} == set(chain.servos) - {wheel}
 
 
 def test_femur_silent_for_good_is_bus_lost_and_safe_stop(chain: ServoChain) -> None:

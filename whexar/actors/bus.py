@@ -497,6 +497,13 @@ class BusScheduler(Actor):
             ]
             models = {s.model.name: s.model for s in chosen}.values() or ct.MODELS.values()
             self.reads.append(_Read(spec, ct.block(spec.registers, models), chosen))
+        self.home: dict[int, int] = {}
+        """Each servo's first read in the plan: where a suspect is asked again."""
+        for k, read in enumerate(self.reads):
+            for s in read.servos:
+                self.home.setdefault(s.id, k)
+        self.suspects: set[int] = set()
+        """Servos whose last read failed: asked every cycle (:meth:`_ask_suspects`)."""
         self.fast = self.plan.fast_sync_read == "on"
         self.fast_streak = 0
         self.cycle = 0
@@ -838,6 +845,8 @@ class BusScheduler(Actor):
             servos = read.take(t)
             if servos:
                 due.append((read, servos))
+        if self.suspects:
+            due = self._ask_suspects(due)
         requests = [
             _Request(r.block.start, r.block.length, tuple(s.id for s in servos))
             for r, servos in due
@@ -887,6 +896,25 @@ class BusScheduler(Actor):
             w = NOMINAL_SMOOTHING if self.measured else 1.0
             self.nominal_s += w * (took - self.nominal_s)
             self.measured = True
+
+    def _ask_suspects(
+        self, due: list[tuple[_Read, list[_Servo]]]
+    ) -> list[tuple[_Read, list[_Servo]]]:
+        """``due`` with every servo whose last read failed asked again, in the first read
+        of the plan that covers it, until it answers or is degraded.
+
+        ``degrade_after`` then counts cycles for every servo: one that only the slow
+        health reads ask (the default plan's trochanter, direction and wheel servos)
+        would otherwise be degraded after that many of its reads, 2 s and more."""
+        asked = {s.id for _, servos in due for s in servos}
+        lists = {id(read): servos for read, servos in due}
+        for sid in sorted(self.suspects):
+            s = self.servos[sid]
+            if not s.live or not s.failures:
+                self.suspects.discard(sid)
+            elif sid not in asked:
+                lists.setdefault(id(self.reads[self.home[sid]]), []).append(s)
+        return [(read, lists[id(read)]) for read in self.reads if id(read) in lists]
 
     def _account_writes(self, t: float, writes: Sequence[_Write], results: Sequence[int]) -> None:
         for w, result in zip(writes, results, strict=True):
@@ -960,6 +988,9 @@ class BusScheduler(Actor):
     def _account(self, outcome: _Outcome, values: Mapping[int, Mapping[str, int]]) -> None:
         for sid in values:
             self.servos[sid].failures = 0
+        if self.suspects:
+            self.suspects.difference_update(values)
+        self.suspects.update(outcome.failed)
         for sid, kind in outcome.failed.items():
             s = self.servos[sid]
             s.failures += 1
