@@ -135,20 +135,29 @@ def test_recover_makes_a_complete_file_of_the_readable_part(
         recover(out, out)
 
 
-@pytest.mark.parametrize("compression", [CompressionType.ZSTD, CompressionType.LZ4, None])
+@pytest.mark.parametrize(
+    ("compression", "chunked"),
+    [
+        (CompressionType.ZSTD, True),
+        (CompressionType.LZ4, True),
+        (CompressionType.NONE, True),
+        (CompressionType.NONE, False),
+    ],
+)
 def test_records_read_what_the_mcap_package_reads(
-    compression: CompressionType | None, tmp_path: Path
+    compression: CompressionType, chunked: bool, tmp_path: Path
 ) -> None:
     """The reader walks chunks itself (faster than ``breakup_chunk``): the same messages,
     topics, times and bytes as the ``mcap`` package, with or without a topic selection, a
-    channel first defined mid-file, equal log times, and every compression."""
+    channel first defined mid-file, equal log times, every compression, and messages
+    outside chunks."""
     path = tmp_path / "plain.mcap"
     with open(path, "wb") as f:
         writer = Writer(
             f,
             chunk_size=300,
-            compression=compression if compression is not None else CompressionType.NONE,
-            use_chunking=True,
+            compression=compression,
+            use_chunking=chunked,
         )
         writer.start()
         schema = writer.register_schema("blob", "", b"")

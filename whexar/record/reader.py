@@ -364,15 +364,6 @@ class Recording:
                             yield made
                         continue
                     heapq.heappush(heap, item)
-                elif isinstance(record, McapMessage):
-                    item = (record.log_time, seq, record.channel_id, record.data)
-                    seq += 1
-                    if file_order:
-                        made = self._made(item, channels, decode)
-                        if made is not None:
-                            yield made
-                        continue
-                    heapq.heappush(heap, item)
                 elif isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, Channel):
@@ -393,9 +384,9 @@ class Recording:
         """Each unit's records (with its index), in file order, up to the first that
         cannot be read: that one ends the readable part (:attr:`damage`).
 
-        With ``keep`` (channel id → wanted, filled as channels are read), a chunk's
-        messages come as ``(log_time, channel_id, data)`` tuples (:func:`_chunk_records`),
-        only those of channels whose topic is in ``wanted`` (all with ``None``).
+        With ``keep`` (channel id → wanted, filled as channels are read), messages come
+        as ``(log_time, channel_id, data)`` tuples (:func:`_chunk_records`), only those
+        of channels whose topic is in ``wanted`` (all with ``None``).
         """
         last_ns: int | None = None
         with open(self.path, "rb") as f:
@@ -415,10 +406,17 @@ class Recording:
         keep: dict[int, bool] | None = None,
         wanted: set[str] | None = None,
     ) -> list[Any]:
-        if unit.record is not None:
-            if keep is not None and isinstance(unit.record, Channel):
-                keep[unit.record.id] = wanted is None or unit.record.topic in wanted
-            return [unit.record]
+        record = unit.record
+        if record is not None:
+            if keep is None:
+                return [record]
+            if isinstance(record, Channel):
+                keep[record.id] = wanted is None or record.topic in wanted
+            elif isinstance(record, McapMessage):  # as _chunk_records gives a message
+                if not keep.get(record.channel_id, True):
+                    return []
+                return [(record.log_time, record.channel_id, record.data)]
+            return [record]
         f.seek(unit.offset + _HEAD.size)
         body = f.read(unit.length - _HEAD.size)
         chunk = Chunk.read(_stream(body))
