@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Final
 
-import lz4.frame
+import lz4.frame  # type: ignore[import-untyped]  # no type hints
 import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
