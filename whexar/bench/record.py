@@ -103,8 +103,13 @@ def instructions(command: list[str]) -> int:
     )
     found = _REFS.search(done.stderr)
     if done.returncode != 0 or found is None:
-        tail = done.stderr.decode(errors="replace").strip().splitlines()[-3:]
-        raise RuntimeError(f"valgrind {' '.join(command)} failed: {' / '.join(tail)}")
+        # The command's own last words, not Valgrind's summary lines.
+        lines = done.stderr.decode(errors="replace").splitlines()
+        said = [line for line in lines if line.strip() and not line.startswith(("==", "--"))]
+        tail = " / ".join(said[-3:]) or "nothing said"
+        raise RuntimeError(
+            f"valgrind {' '.join(command)} failed (exit status {done.returncode}): {tail}"
+        )
     return int(found.group(1).replace(b",", b""))
 
 
@@ -130,8 +135,16 @@ def count_instructions(
         [sys.executable, "-c", f"from whexar.bench.record import _probe; _probe({t!r}, {r!r})"]
         for t, r in runs
     ]
+
+    def counted(command: list[str]) -> int:
+        try:
+            return instructions(command)
+        except RuntimeError as exc:  # once, in this bench, a probe ended early; say so
+            say(f"{exc}; again…")
+            return instructions(command)
+
     with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
-        counts = dict(zip(runs, pool.map(instructions, commands), strict=True))
+        counts = dict(zip(runs, pool.map(counted, commands), strict=True))
     plain = counts[seconds, False] - counts[base_s, False]
     recorded = counts[seconds, True] - counts[base_s, True]
     return {
