@@ -139,7 +139,7 @@ def count_instructions(
     def counted(command: list[str]) -> int:
         try:
             return instructions(command)
-        except RuntimeError as exc:  # once, in this bench, a probe ended early; say so
+        except RuntimeError as exc:  # a probe once ended early, never again since: say so
             say(f"{exc}; again…")
             return instructions(command)
 
