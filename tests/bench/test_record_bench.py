@@ -52,7 +52,8 @@ def test_the_instruction_count_is_per_second_of_the_longer_runs(
 
     def fake(command: list[str]) -> int:
         seconds, recorded = ast.literal_eval(command[-1].rsplit("_probe", 1)[1])
-        assert isinstance(seconds, float) and isinstance(recorded, bool)
+        assert isinstance(seconds, float)
+        assert isinstance(recorded, bool)
         return start_up[recorded] + round(seconds * per_s[recorded])
 
     monkeypatch.setattr(record, "instructions", fake)
