@@ -66,3 +66,28 @@ def test_the_instruction_count_is_per_second_of_the_longer_runs(
     }
     monkeypatch.setattr(shutil, "which", lambda _: None)
     assert count_instructions() is None
+
+
+def test_a_probe_that_ends_early_is_run_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Under Valgrind MuJoCo's XML parser now and then refuses the model: such a probe
+    is run again (and said), up to ``PROBE_ATTEMPTS`` runs."""
+    failures = {"left": 3}
+
+    def flaky(command: list[str]) -> int:
+        if failures["left"]:
+            failures["left"] -= 1
+            raise RuntimeError("valgrind … failed (exit status 1): XML Error")
+        seconds = ast.literal_eval(command[-1].rsplit("_probe", 1)[1])[0]
+        assert isinstance(seconds, float)
+        return round(seconds * 1_000_000)
+
+    said: list[str] = []
+    monkeypatch.setattr(record, "instructions", flaky)
+    monkeypatch.setattr(shutil, "which", lambda _: "/usr/bin/valgrind")
+    found = count_instructions(seconds=10.0, base_s=2.0, progress=said.append)
+    assert found is not None
+    assert found["instructions_pct"] == 0.0
+    assert sum("again" in line for line in said) == 3
+    failures["left"] = 10**6  # never gets through: the count says so
+    with pytest.raises(RuntimeError, match="XML Error"):
+        count_instructions(seconds=10.0, base_s=2.0)

@@ -76,6 +76,8 @@ REPEATS: Final = 8
 BASE_SECONDS: Final = 2.0
 """The shorter run of the instruction count: what both lengths share (start-up, the
 model, the recording process's start) cancels out."""
+PROBE_ATTEMPTS: Final = 6
+"""Runs of one probe before the count gives up (see ``count_instructions``)."""
 _VALGRIND: Final = (
     "valgrind",
     "--tool=cachegrind",
@@ -137,11 +139,15 @@ def count_instructions(
     ]
 
     def counted(command: list[str]) -> int:
-        try:
-            return instructions(command)
-        except RuntimeError as exc:  # a probe once ended early, never again since: say so
-            say(f"{exc}; again…")
-            return instructions(command)
+        # Under Valgrind, MuJoCo's XML parser now and then refuses an attribute of the
+        # model (a different one each time: "unknown error in attribute 'mass'"),
+        # in one run of three or four; never natively. Such a run ends early: run it again.
+        for _ in range(PROBE_ATTEMPTS - 1):
+            try:
+                return instructions(command)
+            except RuntimeError as exc:
+                say(f"{exc}; again…")
+        return instructions(command)
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
         counts = dict(zip(runs, pool.map(counted, commands), strict=True))
