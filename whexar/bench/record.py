@@ -15,7 +15,9 @@ recorded first), so that both see the machine in the same state:
   instructions (**instructions_pct**, :func:`count_instructions`): the course run
   under Valgrind for :data:`BASE_SECONDS` and for :data:`BENCH_SECONDS`, without
   and with a recording; what the longer runs add over the shorter ones is what a
-  simulated second costs, start-ups left out. The counts repeat within 0.2 %;
+  simulated second costs, start-ups left out. The counts repeat within 0.1 %
+  without a recording and 1 % with one (how the runtime packs and sends follows the
+  recording process's pace);
   they do not see the caches. Without Valgrind, the CPU figure below instead.
   The recording is ``whexar sim``'s, written by a process of its own
   (:class:`~whexar.record.sidecar.RecorderProcess`, not counted): the runtime hands
@@ -96,7 +98,8 @@ def _probe(seconds: float, record: bool) -> None:
 
 def instructions(command: list[str]) -> int:
     """The instructions ``command`` executes, counted by Valgrind (cachegrind, no cache
-    simulation): the same within 0.1 % from run to run, whatever else the machine does.
+    simulation): deterministic code counts the same within 0.1 % from run to run,
+    whatever else the machine does.
     Child processes run natively and are not counted."""
     done = subprocess.run(
         [*_VALGRIND, *command],
