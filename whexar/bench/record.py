@@ -358,6 +358,7 @@ def run(progress: Progress = None) -> Report:
         "instructions_pct": None if counted is None else counted["instructions_pct"],
         "max_cycle_delay_ms": found["max_cycle_delay_ms"],
         "replay_realtime_factor": replayed["replay_realtime_factor"],
+        "replay_check_realtime_factor": replayed["replay_check_realtime_factor"],
         "bytes_per_s": found["bytes_per_s"],
         "writer_process_cpu_pct": found["writer_process_cpu_pct"],
         "direct_pct": found["direct_pct"],
