@@ -43,6 +43,14 @@ def test_valgrind_counts_a_commands_instructions() -> None:
         instructions([sys.executable, "-c", "raise SystemExit(3)"])
 
 
+def _probed(command: list[str]) -> tuple[float, bool]:
+    """The arguments of the ``_probe`` call a Valgrind command runs."""
+    seconds, recorded = ast.literal_eval(command[-1].rsplit("_probe", 1)[1])
+    assert isinstance(seconds, float)
+    assert isinstance(recorded, bool)
+    return seconds, recorded
+
+
 def test_the_instruction_count_is_per_second_of_the_longer_runs(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -51,9 +59,7 @@ def test_the_instruction_count_is_per_second_of_the_longer_runs(
     start_up = {False: 5_000_000, True: 9_000_000}  # the recording's start-up is dearer
 
     def fake(command: list[str]) -> int:
-        seconds, recorded = ast.literal_eval(command[-1].rsplit("_probe", 1)[1])
-        assert isinstance(seconds, float)
-        assert isinstance(recorded, bool)
+        seconds, recorded = _probed(command)
         return start_up[recorded] + round(seconds * per_s[recorded])
 
     monkeypatch.setattr(record, "instructions", fake)
@@ -77,8 +83,7 @@ def test_a_probe_that_ends_early_is_run_again(monkeypatch: pytest.MonkeyPatch) -
         if failures["left"]:
             failures["left"] -= 1
             raise RuntimeError("valgrind … failed (exit status 1): XML Error")
-        seconds = ast.literal_eval(command[-1].rsplit("_probe", 1)[1])[0]
-        assert isinstance(seconds, float)
+        seconds, _ = _probed(command)
         return round(seconds * 1_000_000)
 
     said: list[str] = []

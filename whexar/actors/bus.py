@@ -562,8 +562,7 @@ class BusScheduler(Actor):
             port.setPortName(name)  # errors name the configured port, as a device's do
             tap = self.tap()
             if tap is not None:  # bus time: the loop's, plus the wire time of this job so far
-                clock_now = self.clock.now
-                tap_port(port, tap, lambda: clock_now() + port.elapsed_s)
+                tap_port(port, tap, lambda: self.clock.now() + port.elapsed_s)
             return InlinePortOwner(port, self.clock)
         self.clock.uses_real_io(f"servo port {name}")  # refused on virtual time, by name
         latency = latency_timer_ms(name)

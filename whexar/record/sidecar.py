@@ -198,15 +198,10 @@ class RecorderProcess(HandOver):
         many entries. With ``budget_s``, stop after about that many wall seconds.
         Never raises: a child that is gone ends the recording (``failure``) and the
         robot runs on."""
-        if self._closed:
-            return 0
         start = monotonic()
-        pending = self._pending
-        self._max_pending = max(self._max_pending, len(pending))
-        if self._broken is not None:
-            self._dropped += len(pending)
-            pending.clear()
+        if not self._writable():
             return 0
+        pending = self._pending
         done = 0
         while pending or self._declared:
             if len(pending) <= PACK_SLICE:

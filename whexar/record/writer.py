@@ -236,6 +236,8 @@ class HandOver:
     _append: Callable[[tuple[Any, ...]], None]
     _dropped: int
     _closed: bool
+    _broken: str | None
+    _max_pending: int
 
     def link_bytes(self, link: str, direction: str, t: float, data: bytes) -> None:
         """Buffer raw bytes of device link ``link`` sent (``"tx"``) or received (``"rx"``)
@@ -270,6 +272,19 @@ class HandOver:
     def write_pending(self, budget_s: float | None = None) -> int:
         """Write what is pending (each recorder says how); returns how many entries."""
         raise NotImplementedError
+
+    def _writable(self) -> bool:
+        """A write's start: note the buffer's high-water mark; ``False`` once closed, or
+        once the recording broke (what is buffered is then dropped and counted)."""
+        if self._closed:
+            return False
+        pending = self._pending
+        self._max_pending = max(self._max_pending, len(pending))
+        if self._broken is not None:
+            self._dropped += len(pending)
+            pending.clear()
+            return False
+        return True
 
     def close(self) -> RecorderStats:
         """End the recording (each recorder says how)."""
@@ -425,16 +440,10 @@ class Recorder(HandOver):
         (a full disk) ends the recording (``stats.dropped`` counts what follows), and
         the robot runs on.
         """
-        if self._closed:
-            return 0
         start = monotonic()
-        pending = self._pending
-        self._max_pending = max(self._max_pending, len(pending))
-        if self._broken is not None:
-            count = len(pending)
-            pending.clear()
-            self._dropped += count
+        if not self._writable():
             return 0
+        pending = self._pending
         done = 0
         try:
             if self._dropped > self._dropped_logged:
