@@ -7,6 +7,7 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -16,6 +17,7 @@ from whexar.record import replay as replay_module
 from whexar.record.reader import Recording
 from whexar.record.replay import Divergence, compare, replay
 from whexar.record.writer import Recorder
+from whexar.runtime.streams import Dealer
 from whexar.sim.run import SimResult, simulate
 from whexar.testing.walk import command
 
@@ -43,6 +45,28 @@ def test_a_replay_delivers_what_the_run_delivered(recorded_run: tuple[Path, SimR
     for name, stats in run.run.stats.items():
         again = result.channels[name]
         assert (again.published, dict(again.dropped)) == (stats.published, dict(stats.dropped))
+
+
+def test_a_replay_reads_its_recording_as_it_goes(
+    recorded: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Read up front, an hour of device bytes would be held at once (about 15 MB a
+    # minute): the replay holds what lies between its readers, a cycle's worth.
+    held: list[int] = []
+    read = [0]
+    deal = Dealer.deal
+
+    def counted(dealer: Dealer[Any, Any]) -> bool:
+        more = deal(dealer)
+        read[0] += more
+        held.append(sum(len(h.queue) for h in dealer._hands.values()))
+        return more
+
+    monkeypatch.setattr(Dealer, "deal", counted)
+    result = replay(recorded, check=True)
+    assert result.divergence is None
+    assert read[0] > 3_000  # every byte of three seconds went through the dealer
+    assert max(held) < 500  # a sensor frame's worth of bus bytes, however long the log
 
 
 def _config(tmp_path: Path, old: str, new: str) -> Path:

@@ -29,10 +29,14 @@ bytes belong to the read before them.
   recorded the replayed code waits for bytes the robot never sent, which is
   counted (:attr:`ReplayPort.unrecorded_timeouts`) and answered at once.
 * Past the recording's end, writes go nowhere and nothing answers.
+
+The events are read as the replay goes, a transaction ahead of the SDK
+(:meth:`BusReplay.take`), so a long recording is never held in memory at once.
 """
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Final
@@ -92,23 +96,51 @@ class BusReplay:
     by the bus scheduler as port ``replay:NAME`` once registered (:data:`REPLAYED_BUS`)."""
 
     def __init__(self, events: Iterable[tuple[str, float, bytes]], *, baudrate: int) -> None:
-        self.exchanges: list[_Exchange] = []
         self.baudrate = baudrate
-        answering: _Exchange | None = None
-        for direction, t, data in events:
-            if direction == "tx":
-                ex = _Exchange(t, bytes(data), expects_reply(data))
-                self.exchanges.append(ex)
-                if ex.answered or answering is None:
-                    answering = ex
-            elif answering is not None and direction in ("rx", "timeout"):
-                answering.replies.append((t, bytes(data) if direction == "rx" else None))
+        self._events = iter(events)
+        """Read as the replay goes (an hour of recording is never held at once)."""
+        self._ahead: deque[_Exchange] = deque()
+        """Exchanges read and not yet written."""
+        self._answered_ahead = 0
+        self._answering: _Exchange | None = None
         self.port: ReplayPort | None = None
 
-    @property
-    def end_t(self) -> float:
-        """The time of the last recorded packet (0 with none)."""
-        return self.exchanges[-1].t if self.exchanges else 0.0
+    def _read_one(self) -> bool:
+        """Read the next recorded event; ``False`` at the end."""
+        for direction, t, data in self._events:
+            if direction == "tx":
+                ex = _Exchange(t, bytes(data), expects_reply(data))
+                self._ahead.append(ex)
+                if ex.answered:
+                    self._answered_ahead += 1
+                if ex.answered or self._answering is None:
+                    self._answering = ex
+            elif self._answering is not None and direction in ("rx", "timeout"):
+                self._answering.replies.append((t, bytes(data) if direction == "rx" else None))
+            return True
+        return False
+
+    def take(self) -> _Exchange | None:
+        """The next recorded packet and, if it was answered, all of its reply (read up
+        to the next answered packet); ``None`` past the recording's end."""
+        ahead = self._ahead
+        while not ahead or (ahead[0].answered and self._answered_ahead < 2):
+            if not self._read_one():
+                break
+        if not ahead:
+            return None
+        ex = ahead.popleft()
+        if ex.answered:
+            self._answered_ahead -= 1
+        return ex
+
+    def left(self) -> int:
+        """How many recorded packets were not taken (the rest of the events is read)."""
+        left = len(self._ahead)
+        for direction, _, _ in self._events:
+            left += direction == "tx"
+        self._ahead.clear()
+        return left
 
     def open(self, now: Callable[[], float]) -> ReplayPort:
         """The port the SDK talks to (one per run: the recording is played once)."""
@@ -140,7 +172,7 @@ class ReplayPort:
         self.baudrate = replay.baudrate
         self.elapsed_s = 0.0
         self.next = 0
-        """Index of the next recorded packet."""
+        """Recorded packets written so far."""
         self.written = 0
         self.mismatches = 0
         self.first_mismatch: Mismatch | None = None
@@ -218,11 +250,10 @@ class ReplayPort:
         """Take the next recorded packet (module doc); its reply becomes readable."""
         data = bytes(packet)
         self.written += 1
-        exchanges = self.replay.exchanges
-        if self.next >= len(exchanges):
+        ex = self.replay.take()
+        if ex is None:
             self.past_end += 1
             return len(data)
-        ex = exchanges[self.next]
         self.next += 1
         if ex.packet != data:
             self.mismatches += 1

@@ -45,7 +45,7 @@ import math
 import tempfile
 import tomllib
 from collections import deque
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -67,6 +67,7 @@ from whexar.runtime.channels import ChannelStats
 from whexar.runtime.clock import monotonic, wait_until
 from whexar.runtime.devices import DEVICES, DeviceKind
 from whexar.runtime.messages import Message
+from whexar.runtime.streams import Dealer
 from whexar.runtime.wiring import EVENTS_CHANNEL
 from whexar.sensors.replay import REPLAYED_BOARD, REPLAYED_I2C, BoardReplay, I2CReplay
 from whexar.testing.harness import Harness, RunResult, run_actors
@@ -499,22 +500,21 @@ def replay(
     end = recorded_s if stop is None else min(stop, recorded_s)
     whole = end >= recorded_s and to_the_end
 
-    links: dict[str, list[tuple[str, float, bytes]]] = {}
-    feeds: list[tuple[float, str, Message]] = []
-    with tempfile.TemporaryDirectory(prefix="whexar-replay-") as tmp:
+    with (
+        tempfile.TemporaryDirectory(prefix="whexar-replay-") as tmp,
+        contextlib.ExitStack() as on_exit,
+    ):
         cfg_path, cfg, changes = _config(rec, Path(config) if config else None, Path(tmp))
         graph, fed, owners, aliases = _replay_graph(wiring, cfg_path, cfg)
-        fed_topics = {f"/{ch}": ch for ch in fed}
-        for r in rec.records([*(f"/links/{n}" for n in owners), *fed_topics]):
-            if isinstance(r.value, LinkBytes):
-                events = links.setdefault(r.topic.removeprefix("/links/"), [])
-                # Ended early, the replay stops its own way: past the end (and the cycle
-                # in flight at it) nothing answers.
-                if whole or r.value.t <= end + LATE_S:
-                    events.append((r.value.direction, r.value.t, r.value.data))
-            elif isinstance(r.value, Message) and r.value.t <= end:
-                feeds.append((r.value.t, fed_topics[r.topic], r.value))
-        missing = [name for name in owners if name not in links]
+        # The device links and the fed commands are read as the replay goes (module doc).
+        dealer = Dealer(_links(rec, owners, end, whole))
+        on_exit.callback(dealer.close)
+        links = {name: dealer.hand(f"/links/{name}") for name in owners}
+        # The commands come from a reading of their own: waiting for the next one (they
+        # are seconds apart) would make the dealer queue every byte until it.
+        feeds = _feeds(rec, fed, end)
+        on_exit.callback(feeds.close)
+        missing = [name for name in owners if not links[name]]
         if missing:
             raise RecordingError(
                 f"{path} holds no bytes of the device link of {', '.join(missing)} "
@@ -536,6 +536,8 @@ def replay(
             recorder = _recorder(record, live, rec, graph, end)
         observers = [o for o in (checker, recorder) if o is not None]
 
+        fed_counts = dict.fromkeys(fed, 0)
+
         async def scenario(h: Harness) -> None:
             if checker is not None:
                 checker.on_divergence = lambda: h.stop("replay diverged")
@@ -549,6 +551,7 @@ def replay(
                     if t > h.now():
                         await h.sleep_until(t)
                     await h.feed(channel, msg)
+                    fed_counts[channel] += 1
                 await h.sleep(math.inf)
 
         try:
@@ -566,6 +569,11 @@ def replay(
             if recorder is not None:
                 recorder.close()
         wall_s = monotonic() - wall
+        # Stopped at a divergence, the rest of a long recording is not read to count it.
+        stopped = checker is not None and checker.divergence is not None
+        if stopped:
+            dealer.close()
+        described = {name: _describe(device, not stopped) for name, device in devices.items()}
     divergence = None
     if checker is not None:
         divergence = checker.divergence
@@ -581,11 +589,11 @@ def replay(
         recorded_s=recorded_s,
         wall_s=wall_s,
         run=result,
-        fed={ch: sum(1 for f in feeds if f[1] == ch) for ch in fed},
+        fed=fed_counts,
         checked=check,
         compared=0 if checker is None else checker.compared,
         divergence=divergence,
-        links={name: _describe(device) for name, device in devices.items()},
+        links=described,
         damage=None if rec.damage is None else rec.describe_end(),
         config_changes=changes,
         recording=None if recorder is None or record is None else recorder.path,
@@ -613,12 +621,43 @@ def _expected(
 Device = BusReplay | BoardReplay | I2CReplay
 
 
+def _links(
+    rec: Recording, owners: Mapping[str, str], end: float, whole: bool
+) -> Iterator[tuple[str, tuple[str, float, bytes]]]:
+    """The device-link events of the recording (``(dir, t, bytes)`` keyed by topic), in
+    time order, up to where the replay ends."""
+    for r in rec.records([f"/links/{n}" for n in owners]):
+        value = r.value
+        if not isinstance(value, LinkBytes):
+            continue
+        if not whole and value.t > end + LATE_S:
+            # Ended early, the replay stops its own way: past the end (and the cycle in
+            # flight at it) nothing answers.
+            if r.t > end + 2 * LATE_S:
+                return  # time order: nothing later is wanted
+            continue
+        yield r.topic, (value.direction, value.t, value.data)
+
+
+def _feeds(rec: Recording, fed: list[str], end: float) -> Generator[tuple[float, str, Message]]:
+    """The recorded messages of the fed channels (``(t, channel, message)``), in time
+    order, up to where the replay ends."""
+    topics = {f"/{ch}": ch for ch in fed}
+    for r in rec.records(topics):
+        if isinstance(r.value, Message):
+            if r.value.t > end:
+                return
+            yield r.value.t, topics[r.topic], r.value
+
+
 def _devices(
-    owners: Mapping[str, str], links: Mapping[str, list[tuple[str, float, bytes]]], cfg: RobotConfig
+    owners: Mapping[str, str],
+    links: Mapping[str, Iterable[tuple[str, float, bytes]]],
+    cfg: RobotConfig,
 ) -> dict[str, Device]:
     devices: dict[str, Device] = {}
     for name, cls in owners.items():
-        events = links.get(name, [])
+        events = links.get(name, ())
         if cls.endswith(":BusScheduler"):
             devices[name] = BusReplay(events, baudrate=cfg.bus.baudrate)
         elif cls.endswith(":SensorReader"):
@@ -659,18 +698,23 @@ def _first_mismatch(
     )
 
 
-def _describe(device: Device) -> str:
+def _describe(device: Device, count: bool) -> str:
+    """What a played-back device did; ``count``: read the rest of the recording to count
+    what the replay left (not when it stopped at a divergence)."""
     if isinstance(device, BusReplay):
         port = device.port
         if port is None:
-            return f"{len(device.exchanges)} recorded packets, never opened"
+            return f"{device.left()} recorded packets, never opened"
+        of = f"/{port.next + device.left()}" if count else ""
         return (
-            f"{port.next}/{len(device.exchanges)} recorded packets written, "
+            f"{port.next}{of} recorded packets written, "
             f"{port.mismatches} differing, {port.unrecorded_timeouts} waits not recorded"
         )
     if isinstance(device, BoardReplay):
-        return f"{len(device.incoming)} recorded chunks left, {device.mismatches} sends differing"
-    return f"{len(device.events)} recorded calls left, {device.mismatches} calls differing"
+        left = f"{device.incoming.left()} recorded chunks left, " if count else ""
+        return f"{left}{device.mismatches} sends differing"
+    left = f"{device.events.left()} recorded calls left, " if count else ""
+    return f"{left}{device.mismatches} calls differing"
 
 
 async def _clock(

@@ -23,7 +23,6 @@ through the same edges:
 from __future__ import annotations
 
 import math
-from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Final
@@ -31,6 +30,7 @@ from typing import Final
 from whexar.errors import DeviceGoneError
 from whexar.runtime.clock import Clock
 from whexar.runtime.devices import DeviceKind
+from whexar.runtime.streams import Dealer, Hand
 
 __all__ = [
     "REPLAYED_BOARD",
@@ -77,17 +77,17 @@ class BoardReplay(_Compared):
 
     def __init__(self, events: Iterable[Event]) -> None:
         super().__init__()
-        self.incoming: deque[Event] = deque()
+        # Read as the replay goes: an hour of recording is never held at once.
+        split = Dealer((event[0] == "tx", event) for event in events)
+        self.incoming: Hand[Event] = split.hand(False)
         """``rx``, ``open`` and ``gone``, in recorded order."""
-        self.sent: deque[Event] = deque()
-        for event in events:
-            (self.sent if event[0] == "tx" else self.incoming).append(event)
+        self.sent: Hand[Event] = split.hand(True)
         self.unrecorded_opens = 0
 
     def open(self, clock: Clock) -> ReplayLink:
         """Open as the recording did: the next ``open``, or raise its ``gone``."""
         incoming = self.incoming
-        while incoming and incoming[0][0] == "rx":
+        while (first := incoming.peek()) is not None and first[0] == "rx":
             incoming.popleft()  # bytes a closed link never read (an earlier run's end)
         if not incoming:
             self.unrecorded_opens += 1
@@ -111,7 +111,8 @@ class ReplayLink:
     async def receive(self) -> bytes:
         """The next recorded chunk at its time; the recorded ``gone`` as DeviceGoneError."""
         incoming = self.replay.incoming
-        if self.closed or not incoming or incoming[0][0] == "open":
+        first = incoming.peek()
+        if self.closed or first is None or first[0] == "open":
             await self._clock.sleep(math.inf)  # nothing more was received on this link
         direction, t, data = incoming.popleft()
         await self._clock.sleep_until(t)
@@ -139,13 +140,14 @@ class I2CReplay(_Compared):
 
     def __init__(self, events: Iterable[Event]) -> None:
         super().__init__()
-        self.events: deque[Event] = deque(events)
+        self.events: Hand[Event] = Hand.of(events)
+        """Read as the replay goes: an hour of recording is never held at once."""
         self.unrecorded_calls = 0
 
     def opened(self) -> I2CReplay:
         """Open as the recording did: the next ``open``, or raise its ``gone``."""
         events = self.events
-        while events and events[0][0] not in ("open", "gone"):
+        while (first := events.peek()) is not None and first[0] not in ("open", "gone"):
             events.popleft()  # calls of a bus the recording closed before they were answered
         if events:
             direction, _, data = events.popleft()
@@ -156,16 +158,17 @@ class I2CReplay(_Compared):
     def _call(self, out: bytes) -> bytes | None:
         """Take the recorded call ``out`` and what came back; raise its recorded error."""
         events = self.events
-        while events and events[0][0] in ("open", "gone"):
+        while (first := events.peek()) is not None and first[0] in ("open", "gone"):
             events.popleft()  # the reader reopened without our knowing: carry on
-        if not events:
+        if first is None:
             self.unrecorded_calls += 1
             raise OSError(121, "Remote I/O error (past the recording's end)")
         self.compare(events.popleft(), out)
-        if events and events[0][0] == "error":
+        after = events.peek()
+        if after is not None and after[0] == "error":
             code, _, text = events.popleft()[2].decode("utf-8", "replace").partition(":")
             raise OSError(int(code) if code.lstrip("-").isdigit() else 5, text)
-        if events and events[0][0] == "rx":
+        if after is not None and after[0] == "rx":
             return events.popleft()[2]
         return None
 
