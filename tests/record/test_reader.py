@@ -3,16 +3,19 @@ makes it a complete file; a recording of another version is refused clearly."""
 
 from __future__ import annotations
 
+import struct
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
+from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import ChunkIndex
+from mcap.records import Chunk, ChunkIndex
 from mcap.writer import CompressionType, Writer
 
+from whexar.record import reader as reader_module
 from whexar.record.encoding import RecordingError
 from whexar.record.reader import Record, Recording, recover
 
@@ -170,6 +173,10 @@ def test_records_read_what_the_mcap_package_reads(
                 c = writer.register_channel("/c", "", schema)
             if k >= 120:
                 writer.add_message(c, 1000 * k, b"", 0, k)
+            if k == 40:  # defined in one chunk, its messages chunks later
+                d = writer.register_channel("/d", "", schema)
+            if k >= 150:
+                writer.add_message(d, 1000 * k, b"d", 0, k)
         writer.finish()  # type: ignore[no-untyped-call]
     with open(path, "rb") as f:
         expected = [
@@ -188,6 +195,58 @@ def test_records_read_what_the_mcap_package_reads(
     picked = [_key(r) for r in recording.records(["/c", "/a"], file_order=True)]
     assert picked == [e for e in expected if e[0] in ("/a", "/c")]
     assert len(picked) == 200 + 80
+    later = [_key(r) for r in recording.records(["/d"])]
+    assert later == [e for e in expected if e[0] == "/d"]
+    assert len(later) == 50
+
+
+def test_a_topic_selection_leaves_chunks_without_it_unread(
+    recorded_run: RecordedRun, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Whexar's writer defines every channel before the chunks that use it: a chunk whose
+    # Message Indexes name no channel asked for is not even decompressed.
+    every = [_key(r) for r in Recording(recorded_run.path).records(decode=False)]
+    chunks = len(_chunks(recorded_run.path))
+    read: list[int] = []
+    decompressed = reader_module._decompressed
+
+    def counted(chunk: Chunk) -> bytes:
+        read.append(1)
+        return decompressed(chunk)
+
+    monkeypatch.setattr(reader_module, "_decompressed", counted)
+    tf = [_key(r) for r in Recording(recorded_run.path).records(["/tf"], decode=False)]
+    assert tf == [k for k in every if k[0] == "/tf"]
+    assert len(tf) == 1
+    assert chunks > 3
+    assert len(read) == 1
+    # Cut between a chunk's indexes, a selection still reads all the chunk holds.
+    data = recorded_run.path.read_bytes()
+    cut_path = tmp_path / "cut.mcap"
+    cuts = _after_first_index(data)
+    assert len(cuts) > 3
+    for cut in (*cuts[1:3], cuts[-1], int(len(data) * 0.6), int(len(data) * 0.999)):
+        cut_path.write_bytes(data[:cut])
+        recording = Recording(cut_path)
+        everything = [_key(r) for r in recording.records(decode=False)]
+        for topic in {k[0] for k in every}:
+            picked = [_key(r) for r in recording.records([topic], decode=False)]
+            assert picked == [k for k in everything if k[0] == topic]
+
+
+def _after_first_index(data: bytes) -> list[int]:
+    """Offsets just after the first Message Index of each chunk followed by several."""
+    head = struct.Struct("<BQ")
+    pos, out, previous = 8, [], 0
+    while pos + head.size <= len(data):
+        opcode, length = head.unpack_from(data, pos)
+        end = pos + head.size + length
+        if opcode == Opcode.MESSAGE_INDEX and previous == Opcode.CHUNK:
+            nxt = data[end] if end < len(data) else 0
+            if nxt == Opcode.MESSAGE_INDEX:
+                out.append(end)
+        previous, pos = opcode, end
+    return out
 
 
 def _file_with_metadata(path: Path, metadata: dict[str, dict[str, str]]) -> Path:

@@ -6,6 +6,7 @@ from collections.abc import Iterator
 
 import pytest
 
+from whexar.runtime import streams
 from whexar.runtime.streams import Dealer, Hand
 
 
@@ -15,7 +16,10 @@ def _counted(items: list[tuple[str, int]], read: list[int]) -> Iterator[tuple[st
         yield item
 
 
-def test_each_hand_gets_its_items_in_order_reading_only_as_far_as_asked() -> None:
+def test_each_hand_gets_its_items_in_order_reading_only_as_far_as_asked(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(streams, "BATCH", 1)
     read = [0]
     items = [("a", 1), ("b", 2), ("c", 3), ("a", 4), ("b", 5), ("a", 6)]
     dealer = Dealer(_counted(items, read))
@@ -38,6 +42,20 @@ def test_each_hand_gets_its_items_in_order_reading_only_as_far_as_asked() -> Non
         a.popleft()
 
 
+def test_items_are_dealt_a_batch_at_a_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(streams, "BATCH", 3)
+    read = [0]
+    dealer = Dealer(_counted([("a", k) if k % 4 else ("b", k) for k in range(10)], read))
+    a, b = dealer.hand("a"), dealer.hand("b")
+    assert b.popleft() == 0
+    assert read[0] == 3  # one batch held b's first
+    assert list(a.queue) == [1, 2]
+    assert b.popleft() == 4
+    assert read[0] == 6
+    assert [*a] == [1, 2, 3, 5, 6, 7, 9]
+    assert [*b] == [8]
+
+
 def test_left_counts_what_is_not_taken() -> None:
     dealer = Dealer([("a", 1), ("b", 2), ("a", 3), ("a", 4)])
     a, b = dealer.hand("a"), dealer.hand("b")
@@ -48,7 +66,10 @@ def test_left_counts_what_is_not_taken() -> None:
     assert not b
 
 
-def test_a_closed_dealer_reads_no_further_and_closes_its_stream() -> None:
+def test_a_closed_dealer_reads_no_further_and_closes_its_stream(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(streams, "BATCH", 1)
     read = [0]
     items = [("a", k) for k in range(10)]
     stream = _counted(items, read)

@@ -43,6 +43,7 @@ from typing import Final
 
 from whexar.bus.protocol import BROADCAST_ID, Instruction
 from whexar.runtime.devices import DeviceKind
+from whexar.runtime.streams import Hand
 
 __all__ = ["REPLAYED_BUS", "BusReplay", "Mismatch", "ReplayPort", "expects_reply"]
 
@@ -97,7 +98,7 @@ class BusReplay:
 
     def __init__(self, events: Iterable[tuple[str, float, bytes]], *, baudrate: int) -> None:
         self.baudrate = baudrate
-        self._events = iter(events)
+        self._events = events if isinstance(events, Hand) else Hand.of(events)
         """Read as the replay goes (an hour of recording is never held at once)."""
         self._ahead: deque[_Exchange] = deque()
         """Exchanges read and not yet written."""
@@ -105,27 +106,32 @@ class BusReplay:
         self._answering: _Exchange | None = None
         self.port: ReplayPort | None = None
 
-    def _read_one(self) -> bool:
-        """Read the next recorded event; ``False`` at the end."""
-        for direction, t, data in self._events:
+    def _read_more(self) -> bool:
+        """Read the recorded events dealt so far (at least one); ``False`` at the end."""
+        queue = self._events.queue
+        if not queue and not self._events.fill():
+            return False
+        ahead, answering = self._ahead, self._answering
+        while queue:
+            direction, t, data = queue.popleft()
             if direction == "tx":
                 ex = _Exchange(t, bytes(data), expects_reply(data))
-                self._ahead.append(ex)
+                ahead.append(ex)
                 if ex.answered:
                     self._answered_ahead += 1
-                if ex.answered or self._answering is None:
-                    self._answering = ex
-            elif self._answering is not None and direction in ("rx", "timeout"):
-                self._answering.replies.append((t, bytes(data) if direction == "rx" else None))
-            return True
-        return False
+                if ex.answered or answering is None:
+                    answering = ex
+            elif answering is not None and direction in ("rx", "timeout"):
+                answering.replies.append((t, bytes(data) if direction == "rx" else None))
+        self._answering = answering
+        return True
 
     def take(self) -> _Exchange | None:
         """The next recorded packet and, if it was answered, all of its reply (read up
         to the next answered packet); ``None`` past the recording's end."""
         ahead = self._ahead
         while not ahead or (ahead[0].answered and self._answered_ahead < 2):
-            if not self._read_one():
+            if not self._read_more():
                 break
         if not ahead:
             return None
@@ -137,7 +143,7 @@ class BusReplay:
     def left(self) -> int:
         """How many recorded packets were not taken (the rest of the events is read)."""
         left = len(self._ahead)
-        for direction, _, _ in self._events:
+        for direction, _, _ in self._events:  # what is dealt, and the rest
             left += direction == "tx"
         self._ahead.clear()
         return left

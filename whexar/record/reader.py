@@ -73,6 +73,7 @@ __all__ = [
 
 MAGIC: Final = b"\x89MCAP0\r\n"
 _HEAD = struct.Struct("<BQ")
+_CHANNEL_ID = struct.Struct("<H")  # the start of a Message Index record
 _CHUNK_HEAD = struct.Struct("<QQQII")  # start, end, uncompressed size, crc, len(compression)
 _FOOTER_SIZE = 9 + 20  # opcode, length; summary start, summary offset start, crc
 
@@ -155,6 +156,9 @@ class _Unit:
     end: int
     record: Schema | Channel | McapMessage | None = None
     """A bare record; ``None`` for a chunk (read again when iterated)."""
+    channels: set[int] | None = None
+    """A chunk's channel ids, from the Message Index records after it (``None``: none
+    seen, as where a file was cut): a chunk that holds none wanted is not read."""
 
 
 @dataclass(slots=True)
@@ -193,6 +197,12 @@ class Recording:
         self.damage: Damage | None = None
         """Where the readable part ends, for a file that was cut short or is damaged."""
         self._units: list[_Unit] = []
+        self._top_schemas: set[int] = set()
+        self._top_channels: set[int] = set()
+        self._skippable = True
+        """No chunk defines a channel a message needs: every channel with messages, and
+        its schema, is a record of its own before the chunks that use it (whexar's
+        writer); a chunk none of whose channels is wanted can then be left unread."""
         self._compressions: set[str] = set()
         self._walk()
 
@@ -250,6 +260,15 @@ class Recording:
                         if not self.complete:
                             self._damaged(end, last_ns, "the footer is not followed by MCAP magic")
                         return
+                    elif opcode == Opcode.MESSAGE_INDEX and in_data and self._units:
+                        chunk = self._units[-1]
+                        if chunk.record is None and end - pos >= _HEAD.size + 2:
+                            (channel_id,) = _CHANNEL_ID.unpack(f.read(2))
+                            if chunk.channels is None:
+                                chunk.channels = set()
+                            chunk.channels.add(channel_id)
+                            if channel_id not in self._top_channels:
+                                self._skippable = False  # defined in a chunk
                     elif opcode == Opcode.DATA_END:
                         in_data = False  # the summary follows: it repeats what we have
                     elif in_data and opcode in _READ:
@@ -274,12 +293,20 @@ class Recording:
             t = record.log_time
             self._units.append(_Unit(offset, length, t, t, record))
             return t if last_ns is None else max(last_ns, t)
-        elif isinstance(record, Schema | Channel):
+        elif isinstance(record, Schema):
+            self._top_schemas.add(record.id)
+            self._units.append(_Unit(offset, length, _NEVER, _NEVER, record))
+        elif isinstance(record, Channel):
+            self._top_channels.add(record.id)
+            if record.schema_id != 0 and record.schema_id not in self._top_schemas:
+                self._skippable = False  # its schema is defined in a chunk
             self._units.append(_Unit(offset, length, _NEVER, _NEVER, record))
         return last_ns
 
     def _damaged(self, offset: int, last_ns: int | None, reason: str) -> None:
         self.damage = Damage(offset, self.size, last_ns, reason)
+        if self._units and self._units[-1].record is None:
+            self._units[-1].channels = None  # its indexes may be cut: it is read
 
     # ------------------------------------------------------------------ what it holds
 
@@ -417,6 +444,16 @@ class Recording:
                     return []
                 return [(record.log_time, record.channel_id, record.data)]
             return [record]
+        # A chunk none of whose channels is wanted is left unread (where no chunk
+        # defines a channel: ``_skippable``).
+        channels = unit.channels
+        if (
+            keep is not None
+            and channels is not None
+            and self._skippable
+            and not any(keep.get(c, True) for c in channels)
+        ):
+            return []
         f.seek(unit.offset + _HEAD.size)
         body = f.read(unit.length - _HEAD.size)
         chunk = Chunk.read(_stream(body))

@@ -78,7 +78,7 @@ class BoardReplay(_Compared):
     def __init__(self, events: Iterable[Event]) -> None:
         super().__init__()
         # Read as the replay goes: an hour of recording is never held at once.
-        split = Dealer((event[0] == "tx", event) for event in events)
+        split = Dealer(((event[0] == "tx", event) for event in events), batch=1)
         self.incoming: Hand[Event] = split.hand(False)
         """``rx``, ``open`` and ``gone``, in recorded order."""
         self.sent: Hand[Event] = split.hand(True)
