@@ -15,6 +15,7 @@ from whexar.runtime.channels import (
     DEFAULT_CAPACITY,
     STOP_CHECK_WAITS,
     TURN_OPS,
+    Buffer,
     Channel,
     Inbox,
     Outbox,
@@ -337,7 +338,7 @@ def test_a_sender_that_never_waits_yields_once_per_turn() -> None:
 
 def test_a_receiver_of_a_buffer_that_is_never_empty_yields_once_per_turn() -> None:
     async def main() -> list[int]:
-        queue: asyncio.Queue[Heartbeat] = asyncio.Queue()
+        queue: Buffer[Heartbeat] = Buffer(100_000)
         for i in range(1000):
             queue.put_nowait(beat(i))
         inbox = Inbox("backlog", queue, Turn())
@@ -366,7 +367,7 @@ def test_an_actor_that_waits_every_half_turn_never_yields_for_fairness() -> None
     # actor keeps the interleaving it had before fairness existed.
     async def main() -> list[str]:
         turn = Turn()
-        queue: asyncio.Queue[Heartbeat] = asyncio.Queue()
+        queue: Buffer[Heartbeat] = Buffer(100_000)
         inbox: Inbox[Heartbeat] = Inbox("in", queue, turn)
         out: Outbox[Heartbeat] = Outbox((), turn)
         log: list[str] = []
@@ -450,3 +451,58 @@ def test_a_stop_gets_through_to_the_subscriber_of_a_flooded_channel() -> None:
 
     got = run(main, virtual=True, deadlock_after_s=1.0)
     assert 100 <= got <= 100 + STOP_CHECK_WAITS
+
+
+# --------------------------------------------------------------------------- the buffer
+
+
+def _queue_trace(make: Any) -> list[str]:
+    """Waiting getters and putters (one cancelled) on a buffer of 2: what each saw, in order."""
+    trace: list[str] = []
+
+    async def main() -> None:
+        queue = make(2)
+
+        async def getter(name: str) -> None:
+            trace.append(f"{name} got {await queue.get()}")
+
+        async def putter(name: str, item: int) -> None:
+            await queue.put(item)
+            trace.append(f"{name} put {item}")
+
+        tasks = [asyncio.create_task(getter(f"g{k}")) for k in range(3)]
+        await asyncio.sleep(0)
+        tasks[1].cancel()
+        for item in range(7):
+            tasks.append(asyncio.create_task(putter(f"p{item}", item)))
+        await asyncio.sleep(0)
+        for _ in range(3):
+            trace.append(f"nowait {queue.get_nowait()}")
+            await asyncio.sleep(0)
+        try:
+            queue.put_nowait(99)
+        except asyncio.QueueFull:
+            trace.append("full")
+        while not queue.empty():
+            trace.append(f"drained {queue.get_nowait()}")
+            await asyncio.sleep(0)
+        await asyncio.gather(*tasks, return_exceptions=True)
+        trace.append(f"left {queue.qsize()}")
+
+    asyncio.run(main())
+    return trace
+
+
+def test_a_buffer_wakes_its_waiters_as_asyncio_queue_does() -> None:
+    # The buffer slims asyncio's put_nowait/get_nowait: tasks must run in the same order.
+    trace = _queue_trace(Buffer)
+    assert trace == _queue_trace(asyncio.Queue)
+    assert "full" in trace
+
+
+def test_a_buffer_holds_at_least_one_message_and_counts_no_tasks() -> None:
+    with pytest.raises(ValueError, match="at least 1"):
+        Channel("x", Heartbeat, Policy.QUEUE, 0).subscribe("reader")
+    buffer = Channel("x", Heartbeat, Policy.QUEUE, 1).subscribe("reader")
+    with pytest.raises(NotImplementedError):
+        buffer.task_done()
