@@ -14,6 +14,7 @@ import pytest
 from whexar.cli import main
 from whexar.config import RobotConfig
 from whexar.record import replay as replay_module
+from whexar.record.encoding import RecordingError
 from whexar.record.reader import Recording
 from whexar.record.replay import Divergence, compare, replay
 from whexar.record.writer import Recorder
@@ -216,6 +217,26 @@ def test_what_cannot_be_replayed_says_why(
     assert main(["replay", str(bare)]) == 2
     assert "holds no wiring" in capsys.readouterr().err
     assert main(["replay", str(tmp_path / "missing.mcap")]) == 2
+
+
+@pytest.mark.parametrize("check", [False, True])
+def test_a_message_that_cannot_be_read_mid_replay_is_an_error_not_a_silent_end(
+    recorded: Path, monkeypatch: pytest.MonkeyPatch, check: bool
+) -> None:
+    # The recording is read while the actors run, inside the bus's calls to its port:
+    # an error there must not pass for the bus's own, nor end the replay quietly.
+    made = Recording._made
+    count = [0]
+
+    def failing(self: Recording, item: Any, channels: Any, decode: bool) -> Any:
+        count[0] += 1
+        if count[0] == 500:
+            raise RecordingError("a message does not fit its type (a test)")
+        return made(self, item, channels, decode)
+
+    monkeypatch.setattr(Recording, "_made", failing)
+    with pytest.raises(RecordingError, match="does not fit its type"):
+        replay(recorded, check=check)
 
 
 def test_the_comparison_names_the_field() -> None:

@@ -48,7 +48,7 @@ from collections import deque
 from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields, is_dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, TypeVar
 
 import anyio
 
@@ -74,6 +74,8 @@ from whexar.testing.harness import Harness, RunResult, run_actors
 
 if TYPE_CHECKING:
     from whexar.record.writer import LiveSink
+
+T = TypeVar("T")
 
 __all__ = [
     "FLOAT_TOLERANCE",
@@ -507,12 +509,13 @@ def replay(
         cfg_path, cfg, changes = _config(rec, Path(config) if config else None, Path(tmp))
         graph, fed, owners, aliases = _replay_graph(wiring, cfg_path, cfg)
         # The device links and the fed commands are read as the replay goes (module doc).
-        dealer = Dealer(_links(rec, owners, end, whole))
+        reading = _Reading()
+        dealer = Dealer(reading.guarded(_links(rec, owners, end, whole)))
         on_exit.callback(dealer.close)
         links = {name: dealer.hand(f"/links/{name}") for name in owners}
         # The commands come from a reading of their own: waiting for the next one (they
         # are seconds apart) would make the dealer queue every byte until it.
-        feeds = _feeds(rec, fed, end)
+        feeds = reading.guarded(_feeds(rec, fed, end))
         on_exit.callback(feeds.close)
         missing = [name for name in owners if not links[name]]
         if missing:
@@ -526,7 +529,7 @@ def replay(
             left_out = {a["name"] for a in wiring.get("actors", [])} - {
                 a["name"] for a in graph["actors"]
             }
-            expected = _expected(rec, graph, fed, left_out)
+            expected = reading.guarded(_expected(rec, graph, fed, left_out))
             # Where a damaged file is cut, the last instants are only partly there.
             cut = not to_the_end and end >= recorded_s
             checker = _Checker(expected, set(fed), start, end - LATE_S if cut else end, whole)
@@ -539,6 +542,7 @@ def replay(
         fed_counts = dict.fromkeys(fed, 0)
 
         async def scenario(h: Harness) -> None:
+            reading.stop = h.stop
             if checker is not None:
                 checker.on_divergence = lambda: h.stop("replay diverged")
                 checker.now = h.now
@@ -569,6 +573,8 @@ def replay(
             if recorder is not None:
                 recorder.close()
         wall_s = monotonic() - wall
+        if reading.error is not None:
+            raise reading.error
         # Stopped at a divergence, the rest of a long recording is not read to count it.
         stopped = checker is not None and checker.divergence is not None
         if stopped:
@@ -619,6 +625,30 @@ def _expected(
 
 
 Device = BusReplay | BoardReplay | I2CReplay
+
+
+class _Reading:
+    """Keeps what went wrong reading the recording while the replay runs.
+
+    The recording is read inside the actors' calls (a device asking for its next
+    bytes, the checker for the next message): an error raised there would be taken for
+    the device's or the actor's own, and the replay would go on past it. So the first
+    :class:`RecordingError` ends the reading, stops the run, and :func:`replay` raises it.
+    """
+
+    def __init__(self) -> None:
+        self.error: RecordingError | None = None
+        self.stop: Callable[[str], None] = lambda _: None
+        """Stops the run (the harness's, once it runs)."""
+
+    def guarded(self, items: Iterator[T]) -> Generator[T]:
+        """``items``, ending at a :class:`RecordingError`, which is kept and stops the run."""
+        try:
+            yield from items
+        except RecordingError as exc:
+            if self.error is None:
+                self.error = exc
+            self.stop(f"the recording cannot be read on: {exc}")
 
 
 def _links(
