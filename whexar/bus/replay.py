@@ -98,7 +98,7 @@ class BusReplay:
 
     def __init__(self, events: Iterable[tuple[str, float, bytes]], *, baudrate: int) -> None:
         self.baudrate = baudrate
-        self._events = events if isinstance(events, Hand) else Hand.of(events)
+        self._events = Hand.of(events)
         """Read as the replay goes (an hour of recording is never held at once)."""
         self._ahead: deque[_Exchange] = deque()
         """Exchanges read and not yet written."""

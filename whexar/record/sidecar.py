@@ -94,8 +94,8 @@ catches up from the pipe and its bounded buffer."""
 _F_SETPIPE_SZ: Final = getattr(fcntl, "F_SETPIPE_SZ", 1031)
 _FRAME: Final = struct.Struct("<I")  # a frame: its length, then one msgpack array
 
-# Kinds of entries in a frame: (kind, …) arrays.
-_TYPE, _DESCRIPTION, _FAILED, _DROPPED = range(3, 7)  # after the hand-over's three
+# Kinds of entries in a frame: (kind, …) arrays; the hand-over's three, then these.
+_TYPE, _DESCRIPTION, _FAILED, _DROPPED = range(_TRANSFORM + 1, _TRANSFORM + 5)
 
 
 class RecorderProcess(HandOver):

@@ -177,15 +177,6 @@ class ChannelStats:
     buffered: dict[str, int]
 
 
-def _wake_next(waiters: deque[asyncio.Future[None]]) -> None:
-    """Wake the first waiter not cancelled (``asyncio.Queue._wakeup_next``)."""
-    while waiters:
-        waiter = waiters.popleft()
-        if not waiter.done():
-            waiter.set_result(None)
-            break
-
-
 class Buffer(asyncio.Queue[M]):
     """A subscriber's buffer: ``asyncio.Queue`` (bounded), its two hot calls slimmed.
 
@@ -199,6 +190,8 @@ class Buffer(asyncio.Queue[M]):
     _maxsize: int
     _getters: deque[asyncio.Future[None]]
     _putters: deque[asyncio.Future[None]]
+    _wakeup_next: Callable[[deque[asyncio.Future[None]]], None]
+    """asyncio's own: wakes the first waiter not cancelled."""
 
     def put_nowait(self, item: M) -> None:
         queue = self._queue
@@ -206,7 +199,7 @@ class Buffer(asyncio.Queue[M]):
             raise asyncio.QueueFull
         queue.append(item)
         if self._getters:
-            _wake_next(self._getters)
+            self._wakeup_next(self._getters)
 
     def get_nowait(self) -> M:
         queue = self._queue
@@ -214,7 +207,7 @@ class Buffer(asyncio.Queue[M]):
             raise asyncio.QueueEmpty
         item = queue.popleft()
         if self._putters:
-            _wake_next(self._putters)
+            self._wakeup_next(self._putters)
         return item
 
     def task_done(self) -> None:

@@ -88,9 +88,11 @@ class Hand(Generic[T]):
 
     @classmethod
     def of(cls, items: Iterable[T]) -> Hand[T]:
-        """The only hand of a dealer of ``items`` (read one at a time: ``items`` may be
-        another dealer's hand)."""
-        return Dealer(((None, item) for item in items), batch=1).hand(None)
+        """``items`` read as a hand: itself if it is one, else the only hand of a dealer
+        of them."""
+        if isinstance(items, Hand):
+            return items
+        return Dealer((None, item) for item in items).hand(None)
 
     def fill(self) -> bool:
         """Read on until an item is here; ``False`` at the end (a reader that takes

@@ -140,7 +140,7 @@ class I2CReplay(_Compared):
 
     def __init__(self, events: Iterable[Event]) -> None:
         super().__init__()
-        self.events: Hand[Event] = events if isinstance(events, Hand) else Hand.of(events)
+        self.events: Hand[Event] = Hand.of(events)
         """Read as the replay goes: an hour of recording is never held at once."""
         self.unrecorded_calls = 0
 
