@@ -30,7 +30,7 @@ from whexar.runtime.messages import Event, SafeStop, StopRequested
 from whexar.runtime.wiring import EVENTS_CHANNEL
 from whexar.sim.run import Sample, SimResult, simulate
 from whexar.sim.world import SimWorld
-from whexar.testing.harness import LogEntry, MessageLog, RunResult
+from whexar.testing import LogEntry, MessageLog, RunResult
 from whexar.testing.walk import command
 
 FAIL_AT = 8.0

@@ -8,8 +8,11 @@ contracts in pyproject.toml say so and ``lint-imports`` checks them):
 * :mod:`whexar.kinematics` — pure numpy: IK, body frames, wheels, gaits, stability;
 * :mod:`whexar.bus`, :mod:`whexar.sensors` — the device links and their emulators;
 * :mod:`whexar.config` — the robot configuration, validated;
-* :mod:`whexar.actors` — the robot's actors and messages;
-* :mod:`whexar.testing`, :mod:`whexar.bench` — test helpers, benchmarks;
+* :mod:`whexar.actors` — the robot's actors and messages, and its one graph;
+* :mod:`whexar.record`, :mod:`whexar.sim`, :mod:`whexar.campaign` — recordings and replay,
+  the simulated robot, campaigns of runs;
+* :mod:`whexar.testing` — helpers for tests (whexar's and its users');
+* :mod:`whexar.bench` — benchmarks;
 * :mod:`whexar.cli` — the ``whexar`` command.
 
 Units: SI inside the code (metres, radians, seconds, kilograms, newtons,

@@ -24,7 +24,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import RobotConfig
 from whexar.runtime.messages import ActorFailed
-from whexar.testing.harness import RunResult
+from whexar.testing import RunResult
 from whexar.testing.walk import command, run_walk, walk_graph
 
 FULL_FEEDBACK = {"plan": "full_feedback"}

@@ -23,8 +23,8 @@ from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.config import RobotConfig
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed, SafeStop
+from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.bus import servo_chain
-from whexar.testing.harness import Harness, RunResult, run_actors
 from whexar.testing.walk import command, run_walk, walk_graph
 
 CFG = RobotConfig()

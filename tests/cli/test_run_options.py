@@ -14,8 +14,9 @@ from typing import Any
 import pytest
 
 from whexar.cli import main
-from whexar.cli.run import apply_override, assignment, toml_value
+from whexar.cli.run import assignment, toml_value
 from whexar.errors import ConfigError
+from whexar.runtime.wiring import set_param
 
 GRAPH = """
 [[actors]]
@@ -95,19 +96,19 @@ def test_set_needs_actor_param_and_value(capsys: pytest.CaptureFixture[str]) -> 
     assert "expected ACTOR.PARAM=VALUE" in capsys.readouterr().err
 
 
-def test_apply_override_takes_the_longest_actor_name_and_nested_tables() -> None:
+def test_set_param_takes_the_longest_actor_name_and_nested_tables() -> None:
     data: dict[str, Any] = {
         "actors": [
             {"name": "leg", "class": "x:Y"},
             {"name": "leg.front", "class": "x:Y", "params": {"gains": {"p": 1}}},
         ]
     }
-    apply_override(data, "leg.front.gains.p", 2, source="g.toml")
-    apply_override(data, "leg.speed", 0.1, source="g.toml")
+    set_param(data, "leg.front.gains.p", 2, source="g.toml")
+    set_param(data, "leg.speed", 0.1, source="g.toml")
     assert data["actors"][1]["params"] == {"gains": {"p": 2}}
     assert data["actors"][0]["params"] == {"speed": 0.1}
     with pytest.raises(ConfigError, match=r"actors\.leg\.params\.speed is not a table"):
-        apply_override(data, "leg.speed.x", 1, source="g.toml")
+        set_param(data, "leg.speed.x", 1, source="g.toml")
 
 
 def test_commands_plays_a_script_on_virtual_time(

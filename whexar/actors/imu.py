@@ -87,6 +87,10 @@ from whexar.sensors.replay import REPLAYED_I2C
 
 T = TypeVar("T")
 
+REAL_I2C: Final = "i2c"
+"""The ``device`` that names the real bus, ``/dev/i2c-N`` (a graph file cannot say ``None``)."""
+
+
 RETRY_PERIOD_S: Final = 0.5
 """How often a lost link is opened again, and a stale chip's configuration checked."""
 STALE_MIN_PERIODS: Final = 2
@@ -115,9 +119,10 @@ class ImuReader(Actor):
         """Overrides ``imu.address`` (0x6B, or 0x6A with SDO_AG low)."""
         rate_hz: float | None = Field(None, gt=0, le=ODR_HZ[-1], allow_inf_nan=False)
         """Overrides ``imu.rate_hz``."""
-        device: str | None = Field(None, pattern=r"^(fake(:.+)?|replay:.+)$")
-        """``None``: the real ``/dev/i2c-N``; ``"fake"``: a fresh fake chip; ``"fake:NAME"``: the
-        fake bus registered as NAME (:data:`~whexar.sensors.imu_emulator.I2C_BUS`);
+        device: str | None = Field(None, pattern=r"^(i2c|fake(:.+)?|replay:.+)$")
+        """``None`` or ``"i2c"``: the real ``/dev/i2c-N``; ``"fake"``: a fresh fake chip;
+        ``"fake:NAME"``: the fake bus registered as NAME
+        (:data:`~whexar.sensors.imu_emulator.I2C_BUS`);
         ``"replay:NAME"``: recorded calls played back (:mod:`whexar.sensors.replay`)."""
         retry_period_s: float = Field(RETRY_PERIOD_S, gt=0, allow_inf_nan=False)
         """How often a lost link is opened again."""
@@ -151,8 +156,9 @@ class ImuReader(Actor):
                 f"{STALE_MIN_PERIODS} sample periods ({STALE_MIN_PERIODS * self.period_s:g} s "
                 f"at {self.wanted.rate_hz:g} Hz), or a single late sample makes the link stale"
             )
-        self.inline = p.device is not None
-        self._open_bus = self._opener(p.device)
+        device = None if p.device == REAL_I2C else p.device
+        self.inline = device is not None
+        self._open_bus = self._opener(device)
         self.bus: I2CBus | None = None
         self.chip: Lsm9ds1 | None = None
         self.seq = 0

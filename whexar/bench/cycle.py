@@ -6,8 +6,8 @@ together, is at most **1.0 ms** on the machine that runs the bench.
 
 What is measured
 ----------------
-The graph of :func:`~whexar.testing.walk.walk_graph` without its bus actor
-runs on virtual time, the real actor classes under the real runtime (wiring,
+The robot's graph (:func:`~whexar.actors.graph.robot_graph`) without its bus
+and sensor actors runs on virtual time, the real actor classes under the real runtime (wiring,
 ports, channels, the actors' tasks). The bench stands in for the bus as a
 *perfect servo chain*: every cycle it publishes one :class:`ServoStates` on
 ``servo-state`` (42 :class:`JointState`, each joint where its last goal put it,
@@ -55,6 +55,7 @@ from typing import Any, ClassVar
 import anyio
 
 from whexar.actors.coordinator import Coordinator
+from whexar.actors.graph import robot_graph
 from whexar.actors.leg import LegActor
 from whexar.actors.messages import (
     JointGoals,
@@ -70,7 +71,6 @@ from whexar.robot import N_JOINTS, N_LEGS
 from whexar.runtime.clock import run as run_loop
 from whexar.runtime.supervisor import Runtime
 from whexar.runtime.wiring import build_graph
-from whexar.testing.walk import command, walk_graph
 
 CYCLE_TARGET_MS = 1.0
 """Target: median CPU of one control cycle of the six legs and the coordinator."""
@@ -99,6 +99,11 @@ class Engine:
     activity: str
 
 
+def command(**fields: Any) -> MotionCommand:
+    """A :class:`MotionCommand` from the bench, at time 0."""
+    return MotionCommand(t=0.0, source="bench", **fields)
+
+
 ENGINES: tuple[Engine, ...] = (
     Engine("walk", "tripod walk", command(vx_m_s=SPEED_M_S), "walking"),
     Engine("ride", "riding", command(mode="ride", vx_m_s=SPEED_M_S), "riding"),
@@ -107,10 +112,13 @@ ENGINES: tuple[Engine, ...] = (
 
 
 def stack_graph() -> dict[str, Any]:
-    """:func:`walk_graph` without the bus: ``servo-state`` and ``commands`` fed by the bench."""
-    doc = walk_graph()
-    doc["actors"] = [a for a in doc["actors"] if a["name"] != "bus"]
-    return doc
+    """The robot's graph without the bus and the sensors: ``servo-state`` and ``commands``
+    fed by the bench, the legs sensing no contact (the perfect servos have no ground)."""
+    return robot_graph(
+        params={"leg-*": {"contact": "none"}},
+        leave_out=("bus", "sensors", "imu"),
+        feeds=["servo-state", "commands"],
+    )
 
 
 class PerfectServos:

@@ -22,7 +22,7 @@ import sys
 import textwrap
 import tomllib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from whexar.cli.common import (
     CLEAR_LINE,
@@ -35,7 +35,7 @@ from whexar.cli.common import (
 )
 from whexar.errors import ConfigError, Problem, UsageError
 from whexar.runtime.messages import ActorFailed, Message
-from whexar.runtime.wiring import EVENTS_CHANNEL
+from whexar.runtime.wiring import EVENTS_CHANNEL, actor_names, set_param
 
 if TYPE_CHECKING:
     from whexar.config import RobotConfig
@@ -95,57 +95,6 @@ def toml_value(text: str) -> object:
         return text
 
 
-def _actor_names(data: dict[str, Any]) -> list[str]:
-    actors = data.get("actors")
-    if not isinstance(actors, list):
-        return []
-    return [a["name"] for a in actors if isinstance(a, dict) and isinstance(a.get("name"), str)]
-
-
-def apply_override(
-    data: dict[str, Any], target: str, value: object, *, source: str, option: str = "--set"
-) -> None:
-    """Set parameter ``target`` (``ACTOR.PARAM``, or ``ACTOR.TABLE.KEY``) of a wiring document.
-
-    The actor is the longest actor name of the graph that ``target`` starts
-    with (names may hold dots). An unknown actor is a
-    :class:`~whexar.errors.ConfigError` listing the graph's actors.
-    """
-    names = _actor_names(data)
-    actor = max(
-        (n for n in names if target.startswith(f"{n}.") and len(target) > len(n) + 1),
-        key=len,
-        default=None,
-    )
-    if actor is None:
-        known = ", ".join(names) or "none"
-        raise ConfigError(
-            source,
-            [
-                Problem(
-                    option, target, f"ACTOR.PARAM with an actor of the graph; its actors: {known}"
-                )
-            ],
-        )
-    *tables, key = target[len(actor) + 1 :].split(".")
-    for entry in data["actors"]:
-        if not (isinstance(entry, dict) and entry.get("name") == actor):
-            continue
-        table: object = entry.setdefault("params", {})
-        walked = f"actors.{actor}.params"
-        for name in (*tables, None):
-            if not isinstance(table, dict):
-                raise ConfigError(
-                    source,
-                    [Problem(option, target, f"a key inside a table; {walked} is not a table")],
-                )
-            if name is None:
-                table[key] = value
-            else:
-                table = table.setdefault(name, {})
-                walked += f".{name}"
-
-
 def _overrides(args: argparse.Namespace) -> list[tuple[str, object, str]]:
     """Every override the options ask for, in order: (target, value, option)."""
     found = [(target, value, "--set") for target, value in args.set]
@@ -185,7 +134,7 @@ def load_run_graph(args: argparse.Namespace) -> Graph:
         return load_graph(args.graph)
     source = str(args.graph)
     data = read_toml(args.graph)
-    names = _actor_names(data)
+    names = actor_names(data)
     if (args.commands is not None or args.keyboard) and COMMANDS_ACTOR not in names:
         option = "--keyboard" if args.keyboard else "--commands"
         raise ConfigError(
@@ -201,7 +150,7 @@ def load_run_graph(args: argparse.Namespace) -> Graph:
             ],
         )
     for target, value, option in overrides:
-        apply_override(data, target, value, source=source, option=option)
+        set_param(data, target, value, source=source, option=option)
     return build_graph(data, source=source)
 
 

@@ -11,6 +11,6 @@
 * :mod:`~whexar.record.replay` — ``whexar replay``: the devices played back through the same
   actors, and ``--check``.
 
-May import: :mod:`whexar.testing`, :mod:`whexar.actors` and everything below them;
-never :mod:`whexar.sim`, :mod:`whexar.bench` or :mod:`whexar.cli`.
+May import: :mod:`whexar.actors` and everything below them; never :mod:`whexar.testing`,
+:mod:`whexar.sim`, :mod:`whexar.bench` or :mod:`whexar.cli`.
 """

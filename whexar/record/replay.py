@@ -66,11 +66,11 @@ from whexar.record.writer import (
 from whexar.runtime.channels import ChannelStats
 from whexar.runtime.clock import monotonic, wait_until
 from whexar.runtime.devices import DEVICES, DeviceKind
+from whexar.runtime.harness import Harness, RunResult, run_actors
 from whexar.runtime.messages import Message
 from whexar.runtime.streams import Dealer
 from whexar.runtime.wiring import EVENTS_CHANNEL
 from whexar.sensors.replay import REPLAYED_BOARD, REPLAYED_I2C, BoardReplay, I2CReplay
-from whexar.testing.harness import Harness, RunResult, run_actors
 
 if TYPE_CHECKING:
     from whexar.record.writer import LiveSink

@@ -485,3 +485,55 @@ def build_graph(
 def load_graph(path: str | Path, *, external: Mapping[str, str] | None = None) -> Graph:
     """Read, validate and resolve a TOML wiring file."""
     return build_graph(read_toml(path), source=str(path), external=external)
+
+
+def actor_names(data: Mapping[str, Any]) -> list[str]:
+    """The names of a wiring document's actors, in order."""
+    actors = data.get("actors")
+    if not isinstance(actors, list):
+        return []
+    return [a["name"] for a in actors if isinstance(a, dict) and isinstance(a.get("name"), str)]
+
+
+def set_param(
+    data: dict[str, Any], target: str, value: object, *, source: str, option: str = "--set"
+) -> None:
+    """Set parameter ``target`` (``ACTOR.PARAM``, or ``ACTOR.TABLE.KEY``) of a wiring document.
+
+    The actor is the longest actor name of the graph that ``target`` starts
+    with (names may hold dots). An unknown actor is a
+    :class:`~whexar.runtime.errors.ConfigError` listing the graph's actors.
+    """
+    names = actor_names(data)
+    actor = max(
+        (n for n in names if target.startswith(f"{n}.") and len(target) > len(n) + 1),
+        key=len,
+        default=None,
+    )
+    if actor is None:
+        known = ", ".join(names) or "none"
+        raise ConfigError(
+            source,
+            [
+                Problem(
+                    option, target, f"ACTOR.PARAM with an actor of the graph; its actors: {known}"
+                )
+            ],
+        )
+    *tables, key = target[len(actor) + 1 :].split(".")
+    for entry in data["actors"]:
+        if not (isinstance(entry, dict) and entry.get("name") == actor):
+            continue
+        table: object = entry.setdefault("params", {})
+        walked = f"actors.{actor}.params"
+        for name in (*tables, None):
+            if not isinstance(table, dict):
+                raise ConfigError(
+                    source,
+                    [Problem(option, target, f"a key inside a table; {walked} is not a table")],
+                )
+            if name is None:
+                table[key] = value
+            else:
+                table = table.setdefault(name, {})
+                walked += f".{name}"

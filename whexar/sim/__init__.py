@@ -10,7 +10,6 @@
 * :mod:`~whexar.sim.report` and :mod:`~whexar.sim.video` — plots, summary, video;
 * :mod:`~whexar.sim.urdf` — the same robot as URDF, for Foxglove and RViz.
 
-May import: :mod:`whexar.record`, :mod:`whexar.testing`, :mod:`whexar.actors` and everything
-below them;
-never the benchmarks or the command line.
+May import: :mod:`whexar.record`, :mod:`whexar.actors` and everything below them; never
+the test helpers (:mod:`whexar.testing`), the benchmarks or the command line.
 """

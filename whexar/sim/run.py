@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import anyio
 
+from whexar.actors.graph import robot_graph
 from whexar.actors.messages import (
     AccelImplausible,
     AccelPlausible,
@@ -45,6 +46,7 @@ from whexar.kinematics.leg import ik
 from whexar.robot import LEG_NAMES
 from whexar.runtime.clock import monotonic
 from whexar.runtime.devices import DEVICES
+from whexar.runtime.harness import Harness, RunResult, run_actors
 from whexar.runtime.messages import ActorReady, ActorStarting, Event
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
@@ -52,8 +54,6 @@ from whexar.sim.faults import SensorFault
 from whexar.sim.model import TIMESTEP_S, load_model
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
-from whexar.testing.harness import Harness, RunResult, run_actors
-from whexar.testing.walk import walk_graph
 
 if TYPE_CHECKING:
     from whexar.record.sidecar import AnyRecorder
@@ -181,18 +181,18 @@ def seated_angles(cfg: RobotConfig) -> dict[tuple[int, int], float]:
 
 
 def sim_graph(name: str, *, config: str | None = None) -> dict[str, Any]:
-    """The robot's actor graph on the devices registered as ``name``; commands are fed.
+    """The robot's actor graph (:func:`~whexar.actors.graph.robot_graph`) on the devices
+    registered as ``name``, the commands fed by the scenario.
 
-    The graph of the locomotion tests (:func:`whexar.testing.walk.walk_graph`) with the
-    sensor board and the IMU: ``config`` is the robot configuration file every actor
-    reads (default: the built-in). A bus fault plan acts on the registered chain
-    (:func:`simulate` attaches it), not on the bus scheduler."""
-    return walk_graph(
-        f"emulator:{name}",
-        config=config,
-        bus_params={"plan": "default"},
+    ``config`` is the robot configuration file every actor reads (default: the built-in).
+    A bus fault plan acts on the registered chain (:func:`simulate` attaches it), not on
+    the bus scheduler."""
+    return robot_graph(
+        bus=f"emulator:{name}",
         sensors=f"emulator:{name}",
         imu=f"fake:{name}",
+        config=config,
+        feeds=["commands"],
     )
 
 

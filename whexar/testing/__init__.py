@@ -8,7 +8,10 @@ Used by whexar's own tests and meant for anyone extending the runtime::
     assert result.exit_code == 0
     beats = result.messages("beats")
 
-See :func:`run_actors`, :class:`Harness` and :class:`MessageLog`. The small
+See :func:`run_actors`, :class:`Harness` and :class:`MessageLog` (the run harness
+itself lives beside the runtime, :mod:`whexar.runtime.harness`, because the
+simulation and replay run on it too). :func:`~whexar.testing.walk.walk_graph`
+is the robot's one graph without its sensors. The small
 actors in :mod:`whexar.testing.actors` are importable from the wiring as
 ``whexar.testing:Pulse`` and so on: ``Pulse``, ``Relay`` and ``Sink``, the
 misbehaving ``Flood`` (a tight-loop publisher) and ``Stubborn`` (a cleanup
@@ -21,10 +24,20 @@ values of the thesis. The emulators themselves belong to their device
 packages (:mod:`whexar.bus.emulator`, :mod:`whexar.sensors.board_emulator`,
 :mod:`whexar.sensors.imu_emulator`): the actors open them by name.
 
-May import: :mod:`whexar.actors` and everything below it; never the
-benchmarks or the command line.
+May import: :mod:`whexar.campaign` and everything below it; never the
+benchmarks or the command line. No module of the package imports it but
+the benchmarks (the import contracts say so).
 """
 
+from whexar.runtime.harness import (
+    HARNESS,
+    Harness,
+    LogEntry,
+    MessageLog,
+    RunResult,
+    Scenario,
+    run_actors,
+)
 from whexar.testing.actors import (
     Brake,
     Braked,
@@ -35,15 +48,6 @@ from whexar.testing.actors import (
     Relay,
     Sink,
     Stubborn,
-)
-from whexar.testing.harness import (
-    HARNESS,
-    Harness,
-    LogEntry,
-    MessageLog,
-    RunResult,
-    Scenario,
-    run_actors,
 )
 from whexar.testing.imu import imu_graph
 

@@ -22,7 +22,7 @@ from whexar.bus.emulator.chain import ServoChain
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, N_LEGS
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
-from whexar.testing.harness import RunResult, Scenario, run_actors
+from whexar.runtime.harness import RunResult, Scenario, run_actors
 
 _WHEEL = JOINT_NAMES.index("wheel")
 

@@ -1,34 +1,24 @@
-"""The locomotion stack on the servo emulator, for tests and benchmarks.
+"""The locomotion stack on the servo emulator, for tests.
 
-:func:`walk_graph` wires a bus scheduler on an emulated chain, the six leg
-actors and the coordinator; the ``commands`` channel is left for a scenario
-to feed (:func:`run_walk` plays timed :class:`MotionCommand` values into it),
-and optionally a ``reflex`` channel into every leg.
+:func:`walk_graph` is the robot's one graph (``config/graphs/walk.toml``) with
+its sensor readers left out: the bus scheduler on an emulated chain, the six
+leg actors and the coordinator; the ``commands`` channel is left for a
+scenario to feed (:func:`run_walk` plays timed :class:`MotionCommand` values
+into it), and optionally a ``reflex`` channel into every leg.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, Final
 
+from whexar.actors.graph import robot_graph
 from whexar.actors.messages import MotionCommand
-from whexar.robot import LEG_NAMES
+from whexar.runtime.harness import Harness, RunResult, run_actors
 from whexar.runtime.messages import Message
-from whexar.testing.harness import Harness, RunResult, run_actors
 
-WALK_CHANNELS: dict[str, dict[str, Any]] = {
-    "goals": {"message": "JointGoals", "policy": "queue"},
-    "servo-state": {"message": "ServoStates", "policy": "latest"},
-    "steps": {"message": "StepCommand", "policy": "queue"},
-    "motion": {"message": "BodyMotion", "policy": "latest"},
-    "legs": {"message": "LegState", "policy": "queue"},
-    "locomotion": {"message": "LocomotionState", "policy": "latest"},
-    "commands": {"message": "MotionCommand", "policy": "queue"},
-    "reflex": {"message": "JointGoals", "policy": "queue"},
-    "tilt": {"message": "BodyTilt", "policy": "latest"},
-    "loads": {"message": "LegLoads", "policy": "latest"},
-    "ranges": {"message": "ObstacleRanges", "policy": "latest"},
-}
+REFLEX_CHANNEL: Final = {"message": "JointGoals", "policy": "queue"}
+"""The channel a test wires into every leg's ``reflex`` input and feeds."""
 
 
 def walk_graph(
@@ -39,84 +29,35 @@ def walk_graph(
     leg_params: Mapping[str, Any] | None = None,
     reflex: bool = False,
     tilt: bool = False,
-    sensors: str | None = None,
-    imu: str | None = None,
-    stop_timeout_s: float = 3.0,
+    stop_timeout_s: float | None = None,
 ) -> dict[str, Any]:
-    """A wiring document: bus on ``port``, six legs, the coordinator; ``commands`` fed.
+    """The robot's graph (:func:`~whexar.actors.graph.robot_graph`) without its sensors: the
+    bus on ``port``, six legs, the coordinator; ``commands`` fed.
 
-    ``reflex`` wires a ``reflex`` channel into every leg and ``tilt`` a ``tilt`` channel
-    (:class:`BodyTilt`) into the coordinator, both for a scenario to feed. ``sensors``
-    (a board port) adds the sensor reader, whose force sensors reach the legs (which then
-    sense contact as ``locomotion.contact`` says; without a board they sense none), and
-    ``imu`` (a fake I²C device) the IMU reader, whose tilt reaches the coordinator.
+    With no sensor board the legs sense no contact (``contact = "none"``, unless
+    ``leg_params`` says otherwise) and the coordinator no tilt. ``reflex`` wires a ``reflex``
+    channel into every leg and ``tilt`` a ``tilt`` channel (:class:`BodyTilt`) into the
+    coordinator, both for a scenario to feed.
     """
-    cfg = {"config": config} if config else {}
-    tilt = tilt or imu is not None
-    actors: list[dict[str, Any]] = [
-        {
-            "name": "bus",
-            "class": "whexar.actors.bus:BusScheduler",
-            "params": {"port": port, **cfg, **(bus_params or {})},
-            "inputs": {"goals": "goals"},
-            "outputs": {"state": "servo-state"},
-        }
-    ]
-    if sensors is not None:
-        actors.append(
-            {
-                "name": "sensors",
-                "class": "whexar.actors.sensors:SensorReader",
-                "params": {"port": sensors, **cfg},
-                "outputs": {"loads": "loads", "ranges": "ranges"},
-            }
-        )
-    if imu is not None:
-        actors.append(
-            {
-                "name": "imu",
-                "class": "whexar.actors.imu:ImuReader",
-                "params": {"device": imu, **cfg},
-                "outputs": {"tilt": "tilt"},
-            }
-        )
-    contact = {} if sensors is not None else {"contact": "none"}
-    for leg in LEG_NAMES:
-        inputs = {"servo_state": "servo-state", "steps": "steps", "motion": "motion"}
-        if sensors is not None:
-            inputs["loads"] = "loads"
-        if reflex:
-            inputs["reflex"] = "reflex"
-        actors.append(
-            {
-                "name": f"leg-{leg}",
-                "class": "whexar.actors.leg:LegActor",
-                "params": {"leg": leg, **contact, **cfg, **(leg_params or {})},
-                "inputs": inputs,
-                "outputs": {"goals": "goals", "state": "legs"},
-            }
-        )
-    actors.append(
-        {
-            "name": "coordinator",
-            "class": "whexar.actors.coordinator:Coordinator",
-            "params": dict(cfg),
-            "inputs": {
-                "servo_state": "servo-state",
-                "commands": "commands",
-                "legs": "legs",
-                **({"tilt": "tilt"} if tilt else {}),
-            },
-            "outputs": {"steps": "steps", "motion": "motion", "state": "locomotion"},
-        }
+    feeds = ["commands", "tilt"] if tilt else ["commands"]
+    doc = robot_graph(
+        bus=port,
+        config=config,
+        params={
+            "bus": dict(bus_params or {}),
+            "leg-*": {"contact": "none", **(leg_params or {})},
+        },
+        leave_out=("sensors", "imu"),
+        feeds=feeds,
     )
-    wanted = {"reflex": reflex, "tilt": tilt, "loads": sensors, "ranges": sensors}
-    names = [n for n in WALK_CHANNELS if wanted.get(n, True)]
-    return {
-        "runtime": {"stop_timeout_s": stop_timeout_s, "ready_timeout_s": 10.0},
-        "actors": actors,
-        "channels": {n: WALK_CHANNELS[n] for n in names},
-    }
+    if reflex:
+        for actor in doc["actors"]:
+            if actor["name"].startswith("leg-"):
+                actor["inputs"]["reflex"] = "reflex"
+        doc["channels"]["reflex"] = dict(REFLEX_CHANNEL)
+    if stop_timeout_s is not None:
+        doc["runtime"]["stop_timeout_s"] = stop_timeout_s
+    return doc
 
 
 def run_walk(

@@ -25,9 +25,9 @@ from typing import Any, TypeVar, overload
 import anyio
 from anyio.abc import TaskStatus
 
-from whexar.errors import UsageError
 from whexar.runtime.channels import ChannelStats, LinkObserver, Observer, fan_out
 from whexar.runtime.clock import run as run_loop
+from whexar.runtime.errors import UsageError
 from whexar.runtime.messages import Event, Message
 from whexar.runtime.supervisor import Runtime
 from whexar.runtime.wiring import EVENTS_CHANNEL, Graph, GraphSpec, build_graph
