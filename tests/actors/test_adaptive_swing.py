@@ -13,12 +13,12 @@ from collections.abc import Iterator
 
 import pytest
 
-from whexar.actors.leg import planar_fk
 from whexar.actors.messages import LegState, SwingEnded
 from whexar.bus.control_table import TICKS_PER_REV
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.bus.emulator.dynamics import ServoView, default_load
 from whexar.config import RobotConfig
+from whexar.kinematics.leg import fk_point
 from whexar.runtime.devices import DEVICES
 from whexar.testing.bus import servo_chain
 from whexar.testing.walk import command, run_walk, walk_graph
@@ -42,7 +42,7 @@ def blocked_chain() -> Iterator[ServoChain]:
         if servo.id != 3:  # RF femur (eq. 4.1)
             return default_load(servo, t)
         angles = [_rad(made.servos[i].position) for i in range(1, 6)]
-        _, down, _ = planar_fk(angles, geometry)
+        _, down, _ = fk_point(angles, geometry)
         return LOADED_A if -down <= ground + 1e-3 else 0.1
 
     made.load_model = load
@@ -55,7 +55,7 @@ def test_a_swing_that_meets_a_block_stops_on_it_and_the_stance_goes_on_there(
 ) -> None:
     graph = walk_graph("emulator:block", leg_params={"contact": "current"})
     run = run_walk([(3.0, command(vx_m_s=0.08))], duration=9.0, graph=graph)
-    ended = [e for e in run.log.events(of=SwingEnded) if e.leg == 0]
+    ended = [e for e in run.log.messages("swings", of=SwingEnded) if e.leg == 0]
     early = [e for e in ended if e.outcome == "early_contact"]
     assert early, [(e.outcome, e.ground_offset_m) for e in ended]
     # It stopped on the block (30 mm up), within the swing's resolution per bus cycle.
@@ -75,5 +75,5 @@ def test_a_swing_that_finds_no_ground_is_reported() -> None:
     # No load model: the femur never draws a loaded leg's current, so no swing meets ground.
     graph = walk_graph(leg_params={"contact": "current"})
     run = run_walk([(3.0, command(vx_m_s=0.08))], duration=6.0, graph=graph)
-    outcomes = {e.outcome for e in run.log.events(of=SwingEnded)}
+    outcomes = {e.outcome for e in run.log.messages("swings", of=SwingEnded)}
     assert outcomes == {"no_contact"}

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from whexar.actors.leg import HALF_TICK_RAD, planar_fk
+from whexar.actors.locomotion.leg_controller import HALF_TICK_RAD
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,
@@ -23,6 +23,7 @@ from whexar.actors.messages import (
     SwingEnded,
 )
 from whexar.config import RobotConfig
+from whexar.kinematics.leg import fk_point
 from whexar.runtime.messages import ActorFailed
 from whexar.testing import RunResult
 from whexar.testing.walk import command, run_walk, walk_graph
@@ -103,7 +104,7 @@ def test_a_body_height_raises_the_body_over_the_standing_feet() -> None:
         for leg in range(6):
             angles = [j.position_rad for j in states.joints if j.leg == leg and j.joint < 5]
             assert None not in angles
-            _, down, _ = planar_fk([a for a in angles if a is not None], geometry)
+            _, down, _ = fk_point([a for a in angles if a is not None], geometry)
             assert down == pytest.approx(0.33, abs=0.003)
 
 
@@ -115,7 +116,9 @@ def test_walking_on_another_swing_shape(trajectory: str, tmp_path: Path) -> None
         [(3.0, command(vx_m_s=0.08))], duration=8.0, graph=walk_graph(config=str(config))
     )
     assert _faults(run) == []
-    assert run.log.events(of=SwingEnded) == []
+    # No contact sensing here: every swing runs its course.
+    outcomes = {e.outcome for e in run.log.messages("swings", of=SwingEnded)}
+    assert outcomes == {"completed"}
     swings = [s for s in run.log.messages("legs", of=LegState) if s.phase == "swing"]
     assert {s.leg for s in swings} == set(range(6))
     # The apex is the step height (60 mm) above the ground (290 mm below the coxa joints).

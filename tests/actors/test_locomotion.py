@@ -21,7 +21,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from collections import defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 
 from whexar.actors.coordinator import CONTACT_GRID_M
-from whexar.actors.leg import FLIPPED_TROCHANTER, HALF_TICK_RAD
+from whexar.actors.locomotion.leg_controller import FLIPPED_TROCHANTER, HALF_TICK_RAD
 from whexar.actors.messages import (
     BodyMotion,
     CommandClamped,
@@ -868,24 +868,33 @@ def test_too_long_step_and_too_fast_walk_are_clamped() -> None:
 
 
 def test_reflex_takes_the_joint_and_hands_it_back_smoothly() -> None:
-    """A reflex goal for RF's femur: the leg forwards it marked ``reflex`` and reports the
-    phase "reflex" while the goal holds (``reflex_hold_s`` from its time), then blends back to
-    its own trajectory without a jump."""
+    """An override goal for RF's femur: the leg alone decides its joints' goals. It holds
+    the override's angle and reports the phase "reflex" while the goal holds
+    (``reflex_hold_s`` from its time), then blends back to its own trajectory without a jump.
+    The bus gets one goal message per leg and cycle, never a reflex one, each goal once."""
     r = reflex()
     assert faults(r) == []
     release = REFLEX_T + LOCO.reflex_hold_s
-    forwarded = [m for m in r.log.messages("goals", of=JointGoals) if m.reflex]
-    assert forwarded
-    taken = forwarded[0].t  # the first cycle after the reflex goal arrived
-    for m in forwarded:
-        assert m.source == "leg-RF"
-        assert taken <= m.t <= release
-        assert [(g.leg, g.joint, g.position_rad) for g in m.goals] == [(0, FEMUR, REFLEX_FEMUR)]
-    assert forwarded[-1].t > release - 0.02
+    to_bus = r.log.messages("goals", of=JointGoals)
+    assert not any(m.reflex for m in to_bus)
+    assert max(Counter((m.source, m.t) for m in to_bus).values()) == 1
     legs = leg_states(r)
+    held = sorted(t for t, by_leg in legs.items() if by_leg[0].phase == "reflex")
+    assert held
+    taken = held[0]  # the first cycle after the override arrived
+    assert abs(taken - REFLEX_T) < 0.05  # within a bus cycle (stamped with its read time)
+    assert held[-1] > release - 0.02
     for t, by_leg in legs.items():
         assert (by_leg[0].phase == "reflex") == (taken <= t <= release), t
         assert all(by_leg[leg].phase != "reflex" for leg in range(1, N_LEGS))
+    femur_said = [
+        (m.t, g.position_rad)
+        for m in to_bus
+        if m.source == "leg-RF"
+        for g in m.goals
+        if g.joint == FEMUR and taken <= m.t <= release
+    ]
+    assert femur_said == [(taken, REFLEX_FEMUR)]  # said once; the bus keeps it
     goals = leg_goals(r)
     femur = [(t, goal(goals[t][0], FEMUR).position_rad) for t in sorted(goals)]
     assert all(a == REFLEX_FEMUR for t, a in femur if taken <= t <= release)

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from whexar.actors.leg import planar_fk
 from whexar.actors.messages import (
     BusLost,
     GoalClamped,
@@ -21,6 +20,7 @@ from whexar.actors.messages import (
 from whexar.bus.control_table import TICKS_PER_REV
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.config import RobotConfig
+from whexar.kinematics.leg import fk_point
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed, SafeStop
 from whexar.testing import Harness, RunResult, run_actors
@@ -52,7 +52,7 @@ def _activities(run: RunResult) -> list[str]:
 def _wheel_drop(chain: ServoChain, leg: int) -> float:
     """How far below its coxa joint leg ``leg``'s wheel touches, from the servos' angles."""
     angles = [_rad(chain.servos[7 * leg + j + 1].position) for j in range(5)]
-    return planar_fk(angles, GEOMETRY)[1]
+    return fk_point(angles, GEOMETRY)[1]
 
 
 @pytest.fixture

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+from whexar.kinematics.trajectory import SwingOutcome
 from whexar.runtime.messages import Event, Message, message
 
 # --------------------------------------------------------------------------- servo bus
@@ -34,11 +35,10 @@ class JointGoal(Message):
 class JointGoals(Message):
     """Goals for any set of joints; the latest goal per joint wins at the next bus cycle.
 
-    ``reflex`` marks an override from a reflex actor: in a cycle where both
-    arrive for the same joint, a reflex goal wins over any other, whatever
-    their order (among reflex goals the latest wins). A joint no reflex
-    touched keeps the rule "latest wins". Leg actors may therefore send their
-    goals every cycle without undoing a reflex that fired in the same cycle.
+    ``reflex`` marks an override, sent by a reflex to a leg's ``reflex`` input:
+    the leg alone decides each of its joints' goals (it holds the override, then
+    blends back, :mod:`whexar.actors.locomotion.leg_controller`) and sends the bus
+    the result. The bus gives the flag no meaning.
     """
 
     goals: tuple[JointGoal, ...]
@@ -571,13 +571,19 @@ class LocomotionState(Message):
 
 
 @message
-class SwingEnded(Event):
-    """Leg ``leg``'s swing ended (``outcome``: completed, early_contact, blocked,
-    no_contact) with its foot ``ground_offset_m`` above (+) or below (−) where the
-    ground was expected; a later stance continues from that height."""
+class SwingEnded(Message):
+    """Leg ``leg``'s swing ended, with its foot ``ground_offset_m`` above (+) or below (−)
+    where the ground was expected; a later stance continues from that height.
+
+    ``outcome`` (:data:`~whexar.kinematics.trajectory.SwingOutcome`): ``completed`` (down
+    where expected, or the swing ran its course on a leg that senses no contact),
+    ``early_contact`` (ground met from the apex on: the leg stopped there), ``blocked``
+    (something met on the way up: the elevator reflex's case; the swing goes on),
+    ``no_contact`` (no ground where expected: the searching reflex's case). A control
+    signal, not an event: each leg publishes it on its ``swings`` port."""
 
     leg: int
-    outcome: str
+    outcome: SwingOutcome
     ground_offset_m: float
 
 

@@ -1,7 +1,7 @@
 """``whexar bench cycle``: CPU per control cycle of the locomotion stack.
 
 Target: the median CPU time of one control cycle of steady walking, for the six
-:class:`~whexar.actors.leg.LegActor` and the :class:`~whexar.actors.coordinator.Coordinator`
+:class:`~whexar.actors.locomotion.leg.LegActor` and the :class:`~whexar.actors.coordinator.Coordinator`
 together, is at most **1.0 ms** on the machine that runs the bench.
 
 What is measured
@@ -56,7 +56,7 @@ import anyio
 
 from whexar.actors.coordinator import Coordinator
 from whexar.actors.graph import robot_graph
-from whexar.actors.leg import LegActor
+from whexar.actors.locomotion.leg import LegActor
 from whexar.actors.messages import (
     JointGoals,
     JointState,

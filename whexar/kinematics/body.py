@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from whexar._typing import ArrayLike, FloatArray
-from whexar.errors import UsageError
+from whexar.errors import KinematicsError, UsageError
 from whexar.kinematics.geometry import SIDE_SIGN, LegGeometry, leg_positions
 from whexar.kinematics.leg import IKSolution, Target, ik
 from whexar.robot import N_LEGS
@@ -175,3 +175,21 @@ def pose_ik(
     in_legs = body_to_leg(apply_body_pose(feet, pose), g)
     pitch = pose.pitch if trochanter_follows_pitch else 0.0
     return ik(in_legs, g, pitch=pitch, target=target, clamp=clamp)
+
+
+def workspace_step(stance: Stance, geometry: LegGeometry, longest: float, height: float) -> float:
+    """The longest step, at most ``longest``, every leg of ``stance`` can take in any
+    direction with its foot ``height`` up at mid-swing (IK within the joint limits), in
+    5 mm decrements; 0.01 m at the least."""
+    feet = stance_feet(stance)  # leg frames: x outward, y down, z forward
+    length = longest
+    while length > 0.01:
+        half = length / 2
+        offsets = [(half, 0, 0), (-half, 0, 0), (0, 0, half), (0, 0, -half), (0, -height, 0)]
+        points = np.array([f + np.array(o) for f in feet for o in offsets])
+        try:
+            ik(points, geometry, target="contact")
+            return length
+        except KinematicsError:
+            length -= 0.005
+    return 0.01

@@ -347,3 +347,30 @@ def fk(angles: ArrayLike, geometry: LegGeometry, *, point: Target = "tarsus") ->
         raise UsageError(f"FK point {point!r}; allowed: 'tarsus' or 'contact'")
     chain = fk_chain(angles, geometry)
     return chain[..., CHAIN_POINTS.index(point), :]
+
+
+def fk_point(
+    angles: tuple[float, ...] | list[float], geometry: LegGeometry
+) -> tuple[float, float, float]:
+    """The wheel contact in the leg frame from five joint angles: :func:`fk` of one pose
+    (``point="contact"``) in plain Python, the case a leg controller asks every cycle.
+
+    The chain written out: femur, tibia and tarsus in the leg plane (outward r, down s),
+    the trochanter turning that plane about the leg's long axis, the coxa turning it about
+    the vertical (eq. 4.4–4.6). The same results as :func:`fk` (tested equal).
+    """
+    c, t1, f, tb, ts = angles
+    a2, a3 = geometry.femur, geometry.tibia
+    a4 = geometry.contact_offset
+    phi = f
+    r = geometry.trochanter_offset + a2 * math.cos(phi)
+    s = -a2 * math.sin(phi)
+    phi += tb
+    r += a3 * math.cos(phi)
+    s -= a3 * math.sin(phi)
+    phi += ts
+    r += a4 * math.cos(phi)
+    s -= a4 * math.sin(phi)
+    zeta = s * math.sin(t1)
+    y = s * math.cos(t1)
+    return r * math.cos(c) - zeta * math.sin(c), y, r * math.sin(c) + zeta * math.cos(c)

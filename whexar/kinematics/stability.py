@@ -10,6 +10,8 @@ frame shared by the supports and the CoG; a z column is ignored.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Final
 
 import numpy as np
@@ -82,27 +84,8 @@ def triangle_margin(
 
 
 def _convex_hull(points: FloatArray) -> FloatArray:
-    """Counter-clockwise hull vertices (Andrew's monotone chain); collinear points dropped."""
-    unique = np.unique(points, axis=0)  # also sorts by x, then y
-    if len(unique) < 3:
-        return unique
-
-    def cross(o: FloatArray, a: FloatArray, b: FloatArray) -> float:
-        return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
-
-    def chain(ordered: FloatArray) -> list[FloatArray]:
-        hull: list[FloatArray] = []
-        for p in ordered:
-            while len(hull) >= 2 and cross(hull[-2], hull[-1], p) <= 0.0:
-                hull.pop()
-            hull.append(p)
-        return hull
-
-    lower, upper = chain(unique), chain(unique[::-1])
-    vertices = lower[:-1] + upper[:-1]
-    if len(vertices) < 3:  # all collinear: the chains meet at the two end points
-        return np.stack([unique[0], unique[-1]])
-    return np.stack(vertices)
+    """:func:`convex_hull` of an (k, 2) array, as an array."""
+    return np.array(convex_hull((float(x), float(y)) for x, y in points), dtype=np.float64)
 
 
 def _segment_distances(starts: FloatArray, ends: FloatArray, cogs: FloatArray) -> FloatArray:
@@ -155,10 +138,67 @@ def static_stability_margin(support_points: ArrayLike, cog: ArrayLike = (0.0, 0.
     return float(static_stability_margins(support_points, point[None, :])[0])
 
 
+def support_margin(points: list[tuple[float, float]], cog: tuple[float, float]) -> float:
+    """:func:`static_stability_margin` in plain Python, for at most six points: the case a
+    coordinator asks every cycle, where numpy's call overhead is most of the cost (tested
+    equal). Fewer than three supports: −∞; collinear ones: minus the distance to their
+    segment, as :func:`static_stability_margins` gives."""
+    if len(points) < 3:
+        return -math.inf
+    hull = convex_hull(points)
+    cx, cy = cog
+    if len(hull) < 3:  # collinear or coincident: minus the distance to their segment
+        (ax, ay), (bx, by) = hull[0], hull[-1]
+        ex, ey = bx - ax, by - ay
+        length2 = ex * ex + ey * ey
+        u = 0.0 if length2 == 0 else ((cx - ax) * ex + (cy - ay) * ey) / length2
+        u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
+        return -math.hypot(cx - ax - u * ex, cy - ay - u * ey)
+    best = math.inf
+    inside = True
+    # min(max(u, 0), 1) and min(best, d) as comparisons: the same results, no calls.
+    for (ax, ay), (bx, by) in zip(hull, hull[1:] + hull[:1], strict=True):
+        ex, ey = bx - ax, by - ay
+        length2 = ex * ex + ey * ey
+        u = 0.0 if length2 == 0 else ((cx - ax) * ex + (cy - ay) * ey) / length2
+        u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
+        d = math.hypot(cx - ax - u * ex, cy - ay - u * ey)
+        if d < best:
+            best = d
+        if ex * (cy - ay) - ey * (cx - ax) < 0.0:
+            inside = False
+    return best if inside else -best
+
+
+def convex_hull(points: Iterable[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Counter-clockwise hull vertices of 2-D points (Andrew's monotone chain), in plain
+    Python; collinear points dropped, so points on one line give its two ends."""
+    pts = sorted(set(points))
+    if len(pts) < 3:
+        return pts
+    lower: list[tuple[float, float]] = []
+    for q in pts:
+        while len(lower) >= 2 and _cross(lower[-2], lower[-1], q) <= 0:
+            lower.pop()
+        lower.append(q)
+    upper: list[tuple[float, float]] = []
+    for q in reversed(pts):
+        while len(upper) >= 2 and _cross(upper[-2], upper[-1], q) <= 0:
+            upper.pop()
+        upper.append(q)
+    return lower[:-1] + upper[:-1]
+
+
+def _cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
 __all__ = [
     "MIN_SUPPORTS",
+    "convex_hull",
     "static_stability_margin",
     "static_stability_margins",
+    "support_margin",
     "triangle_margin",
 ]
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from whexar._typing import ArrayLike, BoolArray, FloatArray
 from whexar.errors import UsageError
-from whexar.kinematics.cpg import CpgOrbit
+from whexar.kinematics.cpg import OSCILLATORS, CpgOrbit, cpg_orbit
 from whexar.kinematics.gait import PHASE_TOLERANCE
 from whexar.runtime.checks import non_negative, positive, real
 
@@ -31,6 +31,9 @@ SwingShape = Literal["parabola", "half_sine"]
 """Analytic swing shapes (Diosdado 2014, 3.3–3.4)."""
 
 SWING_SHAPES: Final[tuple[str, ...]] = get_args(SwingShape)
+TRAJECTORIES: Final[tuple[str, ...]] = (*SWING_SHAPES, *OSCILLATORS)
+"""Swing shapes a step may name: analytic (Diosdado 2014, 3.3–3.4) or a CPG orbit
+(Grzelczyk et al., 8.4)."""
 
 SwingOutcome = Literal["completed", "early_contact", "blocked", "no_contact"]
 """How a swing ended.
@@ -366,19 +369,98 @@ class SwingTracker:
         return self._status
 
 
+# --------------------------------------------------------------------------- scalar fast paths
+# A leg controller asks these every control cycle for one foot, where numpy's per-call cost
+# would be most of the time: plain Python, built from the vectorised forms above.
+
+SWING_SAMPLES: Final = 64
+"""Samples of a swing table; linear interpolation between them is within 0.1 mm."""
+
+
+def min_jerk(u: float) -> float:
+    """Minimum-jerk blend 10u³ − 15u⁴ + 6u⁵ for u in [0, 1] (clamped): zero speed and
+    acceleration at both ends (Flash and Hogan 1985)."""
+    u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
+    return u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
+
+
+@dataclass(frozen=True, slots=True)
+class SwingTable:
+    """A swing's normalised shape: forward progress f(u) ∈ [0, 1] and height h(u) ∈ [0, 1]
+    at the swing phase u, sampled (:func:`swing_table`)."""
+
+    name: str
+    u: tuple[float, ...]
+    forward: tuple[float, ...]
+    height: tuple[float, ...]
+    apex_u: float
+
+    def at(self, u: float) -> tuple[float, float]:
+        """(f, h) at swing phase ``u`` by linear interpolation in the table."""
+        n = len(self.u) - 1
+        x = (0.0 if u < 0.0 else 1.0 if u > 1.0 else u) * n
+        k = min(int(x), n - 1)
+        w = x - k
+        f, h = self.forward, self.height
+        return f[k] + w * (f[k + 1] - f[k]), h[k] + w * (h[k + 1] - h[k])
+
+
+_TABLES: dict[tuple[str, float], SwingTable] = {}
+
+
+def swing_table(name: str, duty_factor: float) -> SwingTable:
+    """The table of swing shape ``name`` — analytic (:data:`SWING_SHAPES`) or a CPG orbit
+    (:data:`~whexar.kinematics.cpg.OSCILLATORS`) — for a gait of duty factor β (cached).
+
+    Built from :class:`FootTrajectory` with unit step length and height over the swing part
+    of the leg phase, [0, 1 − β), so the analytic shapes and the CPG orbits (re-timed to the
+    gait) come from one place.
+    """
+    key = (name, round(duty_factor, 9))
+    found = _TABLES.get(key)
+    if found is not None:
+        return found
+    shape: SwingShape | CpgOrbit = cpg_orbit(name) if name in OSCILLATORS else name  # type: ignore[assignment]
+    trajectory = FootTrajectory(1.0, 1.0, duty_factor, shape)
+    u = np.linspace(0.0, 1.0, SWING_SAMPLES + 1)
+    # The last sample is the touchdown itself: the leg phase 1 − β, where the stance begins.
+    phase = np.minimum(u * trajectory.swing_fraction, trajectory.swing_fraction - 1e-7)
+    s, h = trajectory.at(phase)
+    forward = (s - s[0]) / (s[-1] - s[0]) if s[-1] != s[0] else u
+    # Height above the straight line from lift-off to touchdown (a CPG orbit is not at 0
+    # there), normalised so the apex is the commanded step height.
+    lifted = np.maximum(h - (h[0] * (1 - u) + h[-1] * u), 0.0)
+    height = lifted / (float(np.max(lifted)) or 1.0)
+    height[0] = height[-1] = 0.0
+    table = SwingTable(
+        name,
+        tuple(u.tolist()),
+        tuple(forward.tolist()),
+        tuple(height.tolist()),
+        float(u[int(np.argmax(height))]),
+    )
+    _TABLES[key] = table
+    return table
+
+
 __all__ = [
     "DEFAULT_CONTACT_TOLERANCE",
+    "SWING_SAMPLES",
     "SWING_SHAPES",
+    "TRAJECTORIES",
     "FootTrajectory",
     "SwingOutcome",
     "SwingShape",
     "SwingStatus",
+    "SwingTable",
     "SwingTracker",
     "Touchdown",
     "adapt_swing",
     "half_sine_swing",
+    "min_jerk",
     "parabolic_swing",
     "sample_swing",
     "stance",
     "swing",
+    "swing_table",
 ]

@@ -1,63 +1,67 @@
-"""The leg controller: one actor per leg, owning its seven joints (Žák 2023, 4.2.6, 5.4).
+"""The leg controller: one leg's policy, a plain class (Žák 2023, 4.2.6, 5.4).
 
 Theory of operation
 -------------------
-A leg actor wakes on every :class:`ServoStates` (one per bus cycle) and, in
-that cycle:
+:meth:`LegController.cycle` is one control cycle of one leg: it takes the
+time, the cycle's :class:`ServoStates` and whatever arrived since the last
+cycle — the coordinator's :class:`StepCommand` s and newest
+:class:`BodyMotion`, the force sensors (:class:`LegLoads`), override goals —
+and returns, in order, what the leg says: its events, the goals that
+changed (:class:`JointGoals`), how its swing ended (:class:`SwingEnded`) and
+its :class:`LegState`. No ``await``, no channel, no clock: the actor
+(:mod:`whexar.actors.locomotion.leg`) only receives, calls and publishes.
 
-1. takes the step commands the coordinator sent it (:class:`StepCommand`),
-   the newest :class:`BodyMotion` and, when wired, the force sensors
-   (:class:`LegLoads`) and reflex goals;
-2. advances its foot along the step it executes, in the *upright frame*:
+In a cycle the leg
+
+1. advances its foot along the step it executes, in the *upright frame*:
    the body frame of a robot standing on its feet (x forward, y left, z up,
    the ground below). A swing follows the commanded shape from wherever the
    foot lifted to the target; a foot on the ground is carried by the body's
    stepping twist, p ← p − (v + ω ẑ × p)·dt; a move follows a minimum-jerk
    path (in joint space the first time, from whatever pose the servos
    report, so it never passes outside the limits);
-3. turns the foot into joint angles: body pose (eq. 3 of Diosdado 2014,
+2. turns the foot into joint angles: body pose (eq. 3 of Diosdado 2014,
    3.2), leg frame, inverse kinematics (eq. 4.7–4.19) with the trochanter at
    the angle the coordinator gives (the body pitch, eq. 4.18). An IK that
    fails holds the last good pose and says so (:class:`IkFailed`);
+3. applies the overrides (below): the leg alone decides each of its joints'
+   goals;
 4. steers and drives the wheel: direction = s·ψ − coxa (5.1), wheel rate =
    speed / radius (eq. 5.18), the wheel stopped whenever the foot is in the
    air;
-5. sends the goals that changed by half a tick or more to the bus scheduler (which
-   keeps the others) and reports :class:`LegState`.
+5. says the goals that changed by half a tick or more (the bus keeps the
+   others) and its :class:`LegState`.
 
 Adaptive swing (Diosdado 2014, 3.5–3.6): contact comes from the force
 sensor when frames arrive, otherwise from the femur current (thesis 6.7.3).
 A swing whose foot meets the ground from its apex on stops there, and the
-stance continues from that height; a swing that ends without ground, or
-meets something on its way up, is reported (:class:`SwingEnded`): the
-searching and elevator reflexes of a later layer act on it. A contact that
-never went away after lift-off is not believed (a stuck sensor).
+stance continues from that height. Every swing's end is a
+:class:`SwingEnded` — completed, early contact, blocked (something met on
+the way up: the elevator reflex's case), no contact (the searching
+reflex's) — the typed signal a reflex subscribes to. A contact that never
+went away after lift-off is not believed (a stuck sensor).
 
 The leg flip (6.8.1): when :class:`BodyMotion` says ``upside_down`` changed,
 the trochanter turns by 180° while the other joints hold: the leg, rotated
 about its own long axis, now reaches the ground on the robot's back. With
 the trochanter at −π, IK is the upright IK of the mirrored leg.
 
-Reflex overrides (the interface the reactive layer uses): a reflex actor
-publishes :class:`JointGoals` with ``reflex=True`` on the channel wired to
-this leg's ``reflex`` input. Each goal for one of this leg's positioning
-joints (coxa…tarsus) takes that joint over for
-``locomotion.reflex_hold_s`` from the goal's ``t``; the leg forwards it to the
-bus marked ``reflex`` (which wins over anything else in that bus cycle) and
-keeps following its own trajectory underneath. Once no reflex goal has held
-the joint for ``reflex_hold_s``, the leg blends from the reflex's angle back
-to its own over ``locomotion.reflex_blend_s``: no jump. A reflex keeps
-control by sending again; it never has to hand control back explicitly.
+Overrides (the interface the reactive layer uses): :class:`JointGoals`
+marked ``reflex`` on the leg's override input. Each goal for one of this
+leg's positioning joints (coxa…tarsus) takes that joint over for
+``locomotion.reflex_hold_s`` from the goal's ``t``; the leg's own
+trajectory goes on underneath. Once no override has held the joint for
+``reflex_hold_s``, the leg blends from the override's angle back to its own
+over ``locomotion.reflex_blend_s``: no jump. An override keeps control by
+coming again; it never has to hand control back explicitly.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Final
-
-import numpy as np
-from pydantic import field_validator
 
 from whexar.actors.messages import (
     BodyMotion,
@@ -70,21 +74,15 @@ from whexar.actors.messages import (
     StepCommand,
     SwingEnded,
 )
-from whexar.config import ConfigFile, ContactSource, RobotConfig, load_config
+from whexar.config import ContactSource, RobotConfig
 from whexar.errors import KinematicsError
-from whexar.kinematics.cpg import OSCILLATORS, cpg_orbit
-from whexar.kinematics.geometry import SIDE_SIGN, LegGeometry
-from whexar.kinematics.leg import ik_point
-from whexar.kinematics.trajectory import SWING_SHAPES, FootTrajectory
-from whexar.robot import LEG_NAMES, N_JOINTS, leg_index
-from whexar.runtime.actor import Actor, ActorParams, Input, Output
+from whexar.kinematics.geometry import SIDE_SIGN
+from whexar.kinematics.leg import fk_point, ik_point
+from whexar.kinematics.trajectory import SwingOutcome, SwingTable, min_jerk, swing_table
+from whexar.robot import N_JOINTS
+from whexar.runtime.messages import Message
 
 STEP_KINDS: Final = ("swing", "stance", "move", "hold")
-TRAJECTORIES: Final = (*SWING_SHAPES, *OSCILLATORS)
-"""Swing shapes a :class:`StepCommand` may name: analytic (Diosdado 2014, 3.3–3.4) or a CPG
-orbit (Grzelczyk et al., 8.4)."""
-SWING_SAMPLES: Final = 64
-"""Samples of a swing shape's table; linear interpolation between them is within 0.1 mm."""
 FSR_FRESH_S: Final = 0.5
 """Force-sensor frames older than this no longer count (auto falls back to the current)."""
 MIN_SIN: Final = 0.05
@@ -94,72 +92,7 @@ FLIPPED_TROCHANTER: Final = -math.pi
 HALF_TICK_RAD: Final = math.pi / 4096
 """Half a Goal Position tick (0.088°): goals closer than this reach the wire unchanged."""
 _POSITIONING: Final = 5
-_DIRECTION: Final = 5
 _WHEEL: Final = 6
-
-
-def min_jerk(u: float) -> float:
-    """Minimum-jerk blend 10u³ − 15u⁴ + 6u⁵ for u in [0, 1]: zero speed and acceleration at
-    both ends (Flash and Hogan 1985)."""
-    u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
-    return u * u * u * (10.0 + u * (-15.0 + 6.0 * u))
-
-
-@dataclass(frozen=True, slots=True)
-class SwingShape:
-    """A swing's normalised shape: forward progress f(u) ∈ [0, 1] and height h(u) ∈ [0, 1]."""
-
-    name: str
-    u: tuple[float, ...]
-    forward: tuple[float, ...]
-    height: tuple[float, ...]
-    apex_u: float
-
-    def at(self, u: float) -> tuple[float, float]:
-        """(f, h) at swing phase ``u`` by linear interpolation in the table."""
-        n = len(self.u) - 1
-        x = (0.0 if u < 0.0 else 1.0 if u > 1.0 else u) * n
-        k = min(int(x), n - 1)
-        w = x - k
-        f, h = self.forward, self.height
-        return f[k] + w * (f[k + 1] - f[k]), h[k] + w * (h[k + 1] - h[k])
-
-
-_SHAPES: dict[tuple[str, float], SwingShape] = {}
-
-
-def swing_shape(name: str, duty_factor: float) -> SwingShape:
-    """The table of swing shape ``name`` for a gait of duty factor β (cached).
-
-    Built from :class:`~whexar.kinematics.trajectory.FootTrajectory` with unit step length
-    and height over the swing part of the leg phase, [0, 1 − β), so the analytic shapes and
-    the CPG orbits (re-timed to the gait) come from one place.
-    """
-    key = (name, round(duty_factor, 9))
-    found = _SHAPES.get(key)
-    if found is not None:
-        return found
-    swing = cpg_orbit(name) if name in OSCILLATORS else name
-    trajectory = FootTrajectory(1.0, 1.0, duty_factor, swing)  # type: ignore[arg-type]
-    u = np.linspace(0.0, 1.0, SWING_SAMPLES + 1)
-    # The last sample is the touchdown itself: the leg phase 1 − β, where the stance begins.
-    phase = np.minimum(u * trajectory.swing_fraction, trajectory.swing_fraction - 1e-7)
-    s, h = trajectory.at(phase)
-    forward = (s - s[0]) / (s[-1] - s[0]) if s[-1] != s[0] else u
-    # Height above the straight line from lift-off to touchdown (a CPG orbit is not at 0
-    # there), normalised so the apex is the commanded step height.
-    lifted = np.maximum(h - (h[0] * (1 - u) + h[-1] * u), 0.0)
-    height = lifted / (float(np.max(lifted)) or 1.0)
-    height[0] = height[-1] = 0.0
-    shape = SwingShape(
-        name,
-        tuple(u.tolist()),
-        tuple(forward.tolist()),
-        tuple(height.tolist()),
-        float(u[int(np.argmax(height))]),
-    )
-    _SHAPES[key] = shape
-    return shape
 
 
 @dataclass(slots=True)
@@ -170,7 +103,7 @@ class _Step:
     origin: list[float]
     target: tuple[float, float, float]
     height: float
-    shape: SwingShape | None
+    shape: SwingTable | None
     joint_space: tuple[list[float], list[float]] | None = None
     lifted: bool = False
     """A swing's foot was seen off the ground (so a contact now is new ground)."""
@@ -178,76 +111,38 @@ class _Step:
     ended: bool = False
 
 
-def planar_fk(angles: list[float], geometry: LegGeometry) -> tuple[float, float, float]:
-    """The wheel contact in the leg frame from five joint angles; scalar, for every cycle.
+class LegController:
+    """One leg's policy: steps, stance, swing, IK, wheel, contact, overrides (module
+    docstring). ``name`` is the ``source`` of what it says; ``report`` makes it say its
+    :class:`LegState` every cycle."""
 
-    The chain of :mod:`whexar.kinematics.leg` written out: femur, tibia and tarsus in the
-    leg plane (outward r, down s), the trochanter turning that plane about the leg's long
-    axis, the coxa turning it about the vertical.
-    """
-    c, t1, f, tb, ts = angles
-    a2, a3 = geometry.femur, geometry.tibia
-    a4 = geometry.contact_offset
-    phi = f
-    r = geometry.trochanter_offset + a2 * math.cos(phi)
-    s = -a2 * math.sin(phi)
-    phi += tb
-    r += a3 * math.cos(phi)
-    s -= a3 * math.sin(phi)
-    phi += ts
-    r += a4 * math.cos(phi)
-    s -= a4 * math.sin(phi)
-    zeta = s * math.sin(t1)
-    y = s * math.cos(t1)
-    return r * math.cos(c) - zeta * math.sin(c), y, r * math.sin(c) + zeta * math.cos(c)
-
-
-class LegActor(Actor):
-    """Executes the coordinator's steps for one leg: trajectory, IK, wheels, contact."""
-
-    class Params(ActorParams):
-        leg: str
-        """The leg this actor drives: RF, LF, RM, LM, RR or LR (or 0…5)."""
-        config: ConfigFile | None = None
-        """Robot configuration file; absent: the built-in defaults."""
-        contact: ContactSource | None = None
-        """Overrides ``locomotion.contact`` (e.g. ``none`` on emulators without ground)."""
-
-        @field_validator("leg")
-        @classmethod
-        def _known_leg(cls, value: str) -> str:
-            leg_index(value)  # raises UsageError naming the allowed legs
-            return value
-
-    params: Params
-    servo_state = Input(ServoStates)
-    steps = Input(StepCommand, optional=True)
-    motion = Input(BodyMotion, optional=True)
-    loads = Input(LegLoads, optional=True)
-    reflex = Input(JointGoals, optional=True)
-    goals = Output(JointGoals)
-    state = Output(LegState, optional=True)
-
-    # ----------------------------------------------------------------- set-up
-
-    def _setup(self) -> None:
-        p = self.params
-        self.cfg: RobotConfig = load_config(p.config) if p.config else RobotConfig()
-        self.loco = self.cfg.locomotion
-        self.leg = leg_index(p.leg)
-        self.leg_name = LEG_NAMES[self.leg]
-        self.geometry = self.cfg.leg_geometry()
-        self.contact_source: ContactSource = p.contact or self.loco.contact
-        mount = self.geometry.mounts[self.leg]
+    def __init__(
+        self,
+        cfg: RobotConfig,
+        leg: int,
+        *,
+        name: str,
+        contact: ContactSource | None = None,
+        report: bool = True,
+    ) -> None:
+        self.cfg = cfg
+        self.loco = cfg.locomotion
+        self.leg = leg
+        self.name = name
+        self.report = report
+        self.geometry = cfg.leg_geometry()
+        self.contact_source: ContactSource = contact or self.loco.contact
+        mount = self.geometry.mounts[leg]
         self.mount = (float(mount[0]), float(mount[1]), float(mount[2]))
-        self.side = float(SIDE_SIGN[self.leg])
+        self.side = float(SIDE_SIGN[leg])
         self.upside_down = False
         self.flip: tuple[float, float, float] | None = None
         """(start_t, from, to) of a trochanter flip under way."""
+        self.flip_to = False
         self.trochanter = 0.0
         self.foot: list[float] | None = None
         self.angles: list[float] | None = None
-        """The last good positioning angles (coxa…tarsus) sent."""
+        """The last good positioning angles (coxa…tarsus) from the IK."""
         self.measured: list[float | None] = [None] * N_JOINTS
         self.currents: list[float | None] = [None] * N_JOINTS
         self.step: _Step | None = None
@@ -255,35 +150,26 @@ class LegActor(Actor):
         self.pose: tuple[float, ...] = (0.0,) * 6
         self.rotation: tuple[float, ...] | None = None
         self.last_t: float | None = None
-        self.cycle = 0
+        self.cycle_no = 0
         self.ik_ok = True
         self.contact = False
         self.fsr_t = -math.inf
         self.fsr_contact = False
-        self.reflex_goals: dict[int, tuple[float, float]] = {}
-        """joint → (angle, time of the reflex goal)."""
+        self.overrides: dict[int, tuple[float, float]] = {}
+        """joint → (angle, time of the override goal)."""
         self.blends: dict[int, tuple[float, float]] = {}
-        """joint → (reflex angle at release, release time)."""
+        """joint → (override angle at release, release time)."""
         self.wheel_radius = self.geometry.wheel_radius
         self.sent: list[float] = [math.inf] * N_JOINTS
-        """The goals last sent, per joint (rad, or rad/s for the wheel); inf: none yet."""
+        """The goals last said, per joint (rad, or rad/s for the wheel); inf: none yet."""
         self.steer = False
         self.heading = 0.0
         self.speed = 0.0
-        self.flip_to = False
-        self.airborne = False
-        """The foot is in the air this cycle (a swing, or a move with a lift): wheel stopped."""
-        # Looked up once, not every cycle: a port attribute is a descriptor and a mapping
-        # lookup. An optional input or output the wiring left unconnected is None here.
-        self.steps_in = self.steps if self.steps.connected else None
-        self.motion_in = self.motion if self.motion.connected else None
-        self.loads_in = self.loads if self.loads.connected else None
-        self.reflex_in = self.reflex if self.reflex.connected else None
-        self.goals_out = self.goals
-        self.state_out = self.state if self.state.connected else None
         self.contact_current_a = self.loco.contact_current_a
         self.femur = self.geometry.femur
         self.tibia = self.geometry.tibia
+        self._out: list[Message] = []
+        self._now = 0.0
 
     # ----------------------------------------------------------------- frames
 
@@ -293,7 +179,7 @@ class LegActor(Actor):
             return -self.side, -self.mount[1], -self.mount[2]
         return self.side, self.mount[1], self.mount[2]
 
-    def _to_leg(self, p: list[float] | tuple[float, float, float]) -> tuple[float, float, float]:
+    def to_leg(self, p: list[float] | tuple[float, float, float]) -> tuple[float, float, float]:
         """Upright-frame point → this leg's frame, through the body pose (p' = Rᵀ(p − t))."""
         x, y, z = p
         if self.rotation is not None:
@@ -305,7 +191,7 @@ class LegActor(Actor):
         side, my, mz = self._frame()
         return -side * (y - my), -(z - mz), x - self.mount[0]
 
-    def _from_leg(self, q: tuple[float, float, float]) -> tuple[float, float, float]:
+    def from_leg(self, q: tuple[float, float, float]) -> tuple[float, float, float]:
         """This leg's frame → upright frame (the pose undone)."""
         side, my, mz = self._frame()
         x = self.mount[0] + q[2]
@@ -322,9 +208,7 @@ class LegActor(Actor):
 
     # ----------------------------------------------------------------- inputs
 
-    def _take_motion(self) -> None:
-        inbox = self.motion_in
-        motion = inbox.latest() if inbox is not None else None
+    def _take_motion(self, motion: BodyMotion | None) -> None:
         if motion is None:
             return
         self.twist = motion.twist
@@ -362,18 +246,10 @@ class LegActor(Actor):
         if self.flip is None and not self.upside_down:
             self.trochanter = motion.trochanter_rad
 
-    def _take_steps(self, t: float) -> None:
-        if self.steps_in is None:
-            return
-        for cmd in self.steps_in.drain():
-            if cmd.leg != self.leg:
-                continue
-            self._begin(cmd, t)
-
-    def _begin(self, cmd: StepCommand, t: float) -> None:
+    def _begin(self, cmd: StepCommand) -> None:
         shape = None
         if cmd.kind == "swing":
-            shape = swing_shape(cmd.trajectory, cmd.duty_factor)
+            shape = swing_table(cmd.trajectory, cmd.duty_factor)
         joint_space = None
         origin = list(self.foot) if self.foot is not None else [0.0, 0.0, 0.0]
         if cmd.kind == "move" and (self.foot is None or self.angles is None):
@@ -383,7 +259,7 @@ class LegActor(Actor):
             if goal is None:
                 goal = list(start)
             joint_space = (start, goal)
-            origin = list(self._from_leg(planar_fk(start, self.geometry)))
+            origin = list(self.from_leg(fk_point(start, self.geometry)))
         elif cmd.kind in ("stance", "hold") and self.foot is None:
             return  # nothing to hold yet: the first command must place the foot
         self.step = _Step(
@@ -410,25 +286,20 @@ class LegActor(Actor):
                     measured[j.joint] = position
                 currents[j.joint] = j.current_a
 
-    def _take_loads(self, t: float) -> None:
-        if self.loads_in is None:
-            return
-        loads = self.loads_in.latest()
+    def _take_loads(self, loads: LegLoads | None) -> None:
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
 
-    def _take_reflex(self) -> None:
-        if self.reflex_in is None:
-            return
-        for msg in self.reflex_in.drain():
+    def _take_overrides(self, overrides: Iterable[JointGoals]) -> None:
+        for msg in overrides:
             if not msg.reflex:
                 continue
             for g in msg.goals:
                 angle = g.position_rad
                 mine = g.leg == self.leg and g.joint < _POSITIONING
                 if mine and angle is not None and math.isfinite(angle):
-                    self.reflex_goals[g.joint] = (angle, msg.t)
+                    self.overrides[g.joint] = (angle, msg.t)
                     self.blends.pop(g.joint, None)
 
     # ----------------------------------------------------------------- contact
@@ -444,7 +315,7 @@ class LegActor(Actor):
             return (amps is not None and abs(amps) > self.contact_current_a), "current"
         return False, "none"
 
-    def _load(self) -> tuple[float | None, float | None]:
+    def load(self) -> tuple[float | None, float | None]:
         """eq. 5.19, F_i = I_i / (L_i · sin α_{i+1}), for the femur and tibia segments."""
         return self._segment_load(2, self.femur), self._segment_load(3, self.tibia)
 
@@ -471,9 +342,10 @@ class LegActor(Actor):
             foot[1] = o[1] + (g[1] - o[1]) * f
             foot[2] = o[2] + (g[2] - o[2]) * f + step.height * h
             if source != "none":
-                self._adapt(step, u, contact)
+                self._adapt(t, step, u, contact)
             elif u >= 1.0:
                 step.ended = True
+                self._swing_ended(t, "completed", step)
             return "swing", u
         if step.kind == "move" and not step.ended:
             s = min_jerk(u)
@@ -495,7 +367,7 @@ class LegActor(Actor):
         kind = "stance" if step.kind in ("swing", "stance") else "hold"
         return kind, u
 
-    def _adapt(self, step: _Step, u: float, contact: bool) -> None:
+    def _adapt(self, t: float, step: _Step, u: float, contact: bool) -> None:
         """Adaptive swing (Diosdado 2014, 3.5–3.6) on the contact reading of this cycle."""
         assert step.shape is not None
         if not contact:
@@ -503,26 +375,27 @@ class LegActor(Actor):
                 step.lifted = True
             if u >= 1.0:
                 step.ended = True
-                self._swing_ended("no_contact", step)
+                self._swing_ended(t, "no_contact", step)
             return
         if not step.lifted or u <= 0.0:
             return  # still on the ground at lift-off, or a sensor stuck on
         if u >= 1.0:
             step.ended = True
-            return  # touchdown where expected
+            self._swing_ended(t, "completed", step)  # touchdown where expected
+            return
         if u < step.shape.apex_u:
             if not step.reported:
                 step.reported = True
-                self._swing_ended("blocked", step)  # the elevator reflex's case
+                self._swing_ended(t, "blocked", step)  # the elevator reflex's case
             return
         step.ended = True
-        self._swing_ended("early_contact", step)
+        self._swing_ended(t, "early_contact", step)
 
-    def _swing_ended(self, outcome: str, step: _Step) -> None:
+    def _swing_ended(self, t: float, outcome: SwingOutcome, step: _Step) -> None:
         assert self.foot is not None
-        self.emit(
+        self._out.append(
             SwingEnded(
-                t=self.now(),
+                t=t,
                 source=self.name,
                 leg=self.leg,
                 outcome=outcome,
@@ -535,14 +408,14 @@ class LegActor(Actor):
     def _solve(self, p: list[float] | tuple[float, float, float]) -> list[float] | None:
         pitch = 0.0 if self.upside_down or self.flip is not None else self.trochanter
         try:
-            solution = ik_point(self._to_leg(p), self.geometry, pitch=pitch, target="contact")
+            solution = ik_point(self.to_leg(p), self.geometry, pitch=pitch, target="contact")
         except KinematicsError as exc:
             if self.ik_ok:
                 self.ik_ok = False
                 x, y, z = p
-                self.emit(
+                self._out.append(
                     IkFailed(
-                        t=self.now(),
+                        t=self._now,
                         source=self.name,
                         leg=self.leg,
                         target=(x, y, z),
@@ -553,7 +426,7 @@ class LegActor(Actor):
         self.ik_ok = True
         return list(solution)
 
-    def _trochanter(self, t: float) -> float:
+    def _trochanter_at(self, t: float) -> float:
         if self.flip is None:
             return FLIPPED_TROCHANTER if self.upside_down else self.trochanter
         start, a, b = self.flip
@@ -567,7 +440,7 @@ class LegActor(Actor):
         return a + (b - a) * min_jerk(u)
 
     def _goals(self, t: float, angles: list[float], airborne: bool) -> JointGoals | None:
-        """This cycle's goals that differ from the ones last sent (None: nothing new).
+        """This cycle's goals that differ from the ones last said (None: nothing new).
 
         The bus keeps a joint's goal until a new one comes, and sends a servo its goal
         again on its own before the Bus Watchdog would expire: an unchanged goal need not
@@ -592,19 +465,18 @@ class LegActor(Actor):
             goals.append(JointGoal(t=t, source=name, leg=leg, joint=_WHEEL, velocity_rad_s=rate))
         return JointGoals(t=t, source=name, goals=tuple(goals)) if goals else None
 
-    def _apply_reflex(self, t: float, angles: list[float]) -> tuple[list[float], list[JointGoal]]:
-        """Reflex-held joints, and the blend back from them (module docstring)."""
+    def _apply_overrides(self, t: float, angles: list[float]) -> tuple[list[float], bool]:
+        """The override-held joints, and the blend back from them (module docstring);
+        True while an override holds a joint."""
         hold, blend = self.loco.reflex_hold_s, self.loco.reflex_blend_s
-        forwarded: list[JointGoal] = []
+        held = False
         out = list(angles)
-        for joint, (angle, since) in list(self.reflex_goals.items()):
+        for joint, (angle, since) in list(self.overrides.items()):
             if t - since <= hold:
                 out[joint] = angle
-                forwarded.append(
-                    JointGoal(t=t, source=self.name, leg=self.leg, joint=joint, position_rad=angle)
-                )
+                held = True
             else:
-                del self.reflex_goals[joint]
+                del self.overrides[joint]
                 self.blends[joint] = (angle, since + hold)
         for joint, (angle, released) in list(self.blends.items()):
             w = (t - released) / blend
@@ -612,26 +484,44 @@ class LegActor(Actor):
                 del self.blends[joint]
                 continue
             out[joint] = angle + (angles[joint] - angle) * min_jerk(w)
-        return out, forwarded
+        return out, held
 
     # ----------------------------------------------------------------- the cycle
 
-    async def _tick(self, states: ServoStates) -> None:
+    def cycle(
+        self,
+        now: float,
+        states: ServoStates,
+        *,
+        motion: BodyMotion | None = None,
+        loads: LegLoads | None = None,
+        overrides: Iterable[JointGoals] = (),
+        steps: Iterable[StepCommand] = (),
+    ) -> list[Message]:
+        """One control cycle (module docstring): ``states`` is the cycle's servo states,
+        ``now`` the clock's time (events are stamped with it), the rest what arrived since
+        the last cycle (``motion`` and ``loads`` the newest, if any). Returns what the leg
+        says, in order: events, :class:`SwingEnded`, :class:`JointGoals`,
+        :class:`LegState`."""
+        self._now = now
+        out = self._out = []
         t = states.t
         dt = 0.0 if self.last_t is None else t - self.last_t
         self.last_t = t
-        self.cycle = states.cycle
+        self.cycle_no = states.cycle
         self._take_state(states)
-        self._take_motion()
-        self._take_loads(t)
-        self._take_reflex()
-        self._take_steps(t)
+        self._take_motion(motion)
+        self._take_loads(loads)
+        self._take_overrides(overrides)
+        for cmd in steps:
+            if cmd.leg == self.leg:
+                self._begin(cmd)
         contact, source = self._contact(t)
         self.contact = contact
         phase, progress = self._advance(t, dt, contact, source)
         if self.foot is None:
-            return  # no command yet: the bus holds the servos where they stand
-        troch = self._trochanter(t)
+            return out  # no command yet: the bus holds the servos where they stand
+        troch = self._trochanter_at(t)
         step = self.step
         angles: list[float] | None
         if step is not None and step.joint_space is not None and phase == "move":
@@ -646,56 +536,50 @@ class LegActor(Actor):
         if angles is None:
             angles = self.angles
             if angles is None:
-                return
+                return out
         else:
             self.angles = angles
         angles = list(angles)
         angles[1] = troch
-        if self.reflex_goals or self.blends:
-            angles, forwarded = self._apply_reflex(t, angles)
-            if forwarded:
+        if self.overrides or self.blends:
+            angles, held = self._apply_overrides(t, angles)
+            if held:
                 phase = "reflex"
-                for g in forwarded:  # the bus now holds the reflex's goal for these joints
-                    self.sent[g.joint] = math.inf
-                await self.goals_out.send(
-                    JointGoals(t=t, source=self.name, goals=tuple(forwarded), reflex=True)
-                )
         airborne = phase in ("swing", "flip") or (
             phase == "move" and step is not None and step.height > 0.0
         )
         goals = self._goals(t, angles, airborne)
         if goals is not None:
-            await self.goals_out.send(goals)
-        if self.state_out is not None:
-            measured = None
-            coxa, trochanter, femur, tibia, tarsus = self.measured[:_POSITIONING]
-            if trochanter is None:
-                trochanter = troch  # a plan that does not read it (the default) leaves its goal
-            if coxa is not None and femur is not None and tibia is not None and tarsus is not None:
-                q = planar_fk([coxa, trochanter, femur, tibia, tarsus], self.geometry)
-                if self.upside_down:
-                    q = (q[0], -q[1], q[2])
-                measured = self._from_leg(q)
-            foot = self.foot
-            await self.state_out.send(
-                LegState(
-                    t=t,
-                    source=self.name,
-                    leg=self.leg,
-                    cycle=self.cycle,
-                    phase=phase,
-                    progress=progress,
-                    foot=(foot[0], foot[1], foot[2]),
-                    measured_foot=measured,
-                    contact=contact,
-                    contact_source=source,
-                    load=self._load(),
-                    ik_ok=self.ik_ok,
-                )
-            )
+            out.append(goals)
+        if self.report:
+            out.append(self._state(t, phase, progress, troch, contact, source))
+        return out
 
-    async def run(self) -> None:
-        self._setup()
-        self.ready()
-        async for states in self.servo_state:
-            await self._tick(states)
+    def _state(
+        self, t: float, phase: str, progress: float, troch: float, contact: bool, source: str
+    ) -> LegState:
+        measured = None
+        coxa, trochanter, femur, tibia, tarsus = self.measured[:_POSITIONING]
+        if trochanter is None:
+            trochanter = troch  # a plan that does not read it (the default) leaves its goal
+        if coxa is not None and femur is not None and tibia is not None and tarsus is not None:
+            q = fk_point((coxa, trochanter, femur, tibia, tarsus), self.geometry)
+            if self.upside_down:
+                q = (q[0], -q[1], q[2])
+            measured = self.from_leg(q)
+        assert self.foot is not None
+        foot = self.foot
+        return LegState(
+            t=t,
+            source=self.name,
+            leg=self.leg,
+            cycle=self.cycle_no,
+            phase=phase,
+            progress=progress,
+            foot=(foot[0], foot[1], foot[2]),
+            measured_foot=measured,
+            contact=contact,
+            contact_source=source,
+            load=self.load(),
+            ik_ok=self.ik_ok,
+        )

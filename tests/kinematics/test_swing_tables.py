@@ -1,68 +1,16 @@
-"""The leg actor's pure helpers: its scalar forward kinematics, the minimum-jerk blend and
-the swing shape tables."""
+"""The scalar fast paths of the foot trajectories: the minimum-jerk blend and the swing
+tables a leg controller reads every cycle."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest
 
-from whexar._typing import FloatArray
-from whexar.actors.leg import (
-    FLIPPED_TROCHANTER,
-    SWING_SAMPLES,
-    TRAJECTORIES,
-    min_jerk,
-    planar_fk,
-    swing_shape,
-)
-from whexar.config import RobotConfig
 from whexar.kinematics.cpg import OSCILLATORS
-from whexar.kinematics.leg import fk
+from whexar.kinematics.trajectory import SWING_SAMPLES, TRAJECTORIES, min_jerk, swing_table
 
-GEOMETRY = RobotConfig().leg_geometry()
 DUTY_FACTORS = (0.5, 2 / 3, 5 / 6)
 """Tripod; tetrapod and ripple; wave."""
-
-
-# --------------------------------------------------------------------------- planar_fk
-
-
-def random_angles(n: int, seed: int) -> FloatArray:
-    """``n`` joint angle sets within the limits; the trochanter (±360°) within one turn."""
-    rng = np.random.default_rng(seed)
-    lo = np.maximum(GEOMETRY.lower_limits, -math.pi)
-    hi = np.minimum(GEOMETRY.upper_limits, math.pi)
-    return rng.uniform(lo, hi, size=(n, 5))
-
-
-def test_planar_fk_is_the_dh_chain() -> None:
-    angles = random_angles(500, seed=5)
-    assert np.any(np.abs(angles[:, 1]) > 1.0)  # the trochanter really turns
-    want = fk(angles, GEOMETRY, point="contact")
-    got = np.array([planar_fk(list(a), GEOMETRY) for a in angles])
-    np.testing.assert_allclose(got, want, atol=1e-12)
-
-
-@pytest.mark.parametrize("trochanter", [0.0, 0.3, -0.7, math.pi / 2, FLIPPED_TROCHANTER])
-def test_planar_fk_at_chosen_trochanter_angles(trochanter: float) -> None:
-    angles = random_angles(50, seed=11)
-    angles[:, 1] = trochanter
-    want = fk(angles, GEOMETRY, point="contact")
-    got = np.array([planar_fk(list(a), GEOMETRY) for a in angles])
-    np.testing.assert_allclose(got, want, atol=1e-12)
-
-
-def test_planar_fk_of_a_flipped_leg_mirrors_it() -> None:
-    """Turned by −π about its long axis the leg reaches as far, on the other side (y)."""
-    angles = random_angles(50, seed=3)
-    angles[:, 1] = 0.0
-    flipped = angles.copy()
-    flipped[:, 1] = FLIPPED_TROCHANTER
-    for a, b in zip(angles, flipped, strict=True):
-        x, y, z = planar_fk(list(a), GEOMETRY)
-        assert planar_fk(list(b), GEOMETRY) == pytest.approx((x, -y, z), abs=1e-12)
 
 
 # --------------------------------------------------------------------------- min_jerk
@@ -93,8 +41,8 @@ def test_min_jerk_is_monotonic_symmetric_and_starts_and_stops_at_rest() -> None:
 
 @pytest.mark.parametrize("beta", DUTY_FACTORS)
 @pytest.mark.parametrize("name", TRAJECTORIES)
-def test_swing_shape_table(name: str, beta: float) -> None:
-    shape = swing_shape(name, beta)
+def test_swing_table_table(name: str, beta: float) -> None:
+    shape = swing_table(name, beta)
     assert shape.name == name
     u, f, h = np.array(shape.u), np.array(shape.forward), np.array(shape.height)
     assert len(u) == len(f) == len(h) == SWING_SAMPLES + 1
@@ -124,14 +72,14 @@ def test_swing_shape_table(name: str, beta: float) -> None:
     "name",
     TRAJECTORIES,
 )
-def test_swing_shape_reaches_the_step_height(name: str, beta: float) -> None:
+def test_swing_table_reaches_the_step_height(name: str, beta: float) -> None:
     """A swing's apex is the commanded step height (StepCommand.height_m): max h = 1."""
-    assert max(swing_shape(name, beta).height) == pytest.approx(1.0, abs=0.01)
+    assert max(swing_table(name, beta).height) == pytest.approx(1.0, abs=0.01)
 
 
 @pytest.mark.parametrize("name", TRAJECTORIES)
-def test_swing_shape_lookup_interpolates_and_clamps(name: str) -> None:
-    shape = swing_shape(name, 0.5)
+def test_swing_table_lookup_interpolates_and_clamps(name: str) -> None:
+    shape = swing_table(name, 0.5)
     assert shape.at(0.0) == pytest.approx((0.0, 0.0), abs=1e-12)
     assert shape.at(1.0) == pytest.approx((1.0, 0.0), abs=1e-12)
     assert shape.at(-0.2) == shape.at(0.0)
@@ -144,7 +92,7 @@ def test_swing_shape_lookup_interpolates_and_clamps(name: str) -> None:
     assert h == pytest.approx(0.5 * (shape.height[k] + shape.height[k + 1]))
 
 
-def test_swing_shapes_are_cached_per_duty_factor() -> None:
-    assert swing_shape("parabola", 0.5) is swing_shape("parabola", 0.5)
-    assert swing_shape("parabola", 2 / 3) is swing_shape("parabola", 2.0 / 3.0)
-    assert swing_shape("hopf", 0.5) is not swing_shape("hopf", 5 / 6)
+def test_swing_tables_are_cached_per_duty_factor() -> None:
+    assert swing_table("parabola", 0.5) is swing_table("parabola", 0.5)
+    assert swing_table("parabola", 2 / 3) is swing_table("parabola", 2.0 / 3.0)
+    assert swing_table("hopf", 0.5) is not swing_table("hopf", 5 / 6)

@@ -1,0 +1,321 @@
+"""The leg's policy, called directly: no runtime, no bus, no clock (milliseconds)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from whexar.actors.locomotion.leg_controller import HALF_TICK_RAD, LegController
+from whexar.actors.messages import (
+    BodyMotion,
+    IkFailed,
+    JointGoal,
+    JointGoals,
+    JointState,
+    LegState,
+    ServoStates,
+    StepCommand,
+    SwingEnded,
+)
+from whexar.config import RobotConfig
+from whexar.kinematics.body import leg_to_body, stance_feet
+from whexar.kinematics.leg import fk_point
+from whexar.runtime.messages import Message
+
+CFG = RobotConfig()
+GEOMETRY = CFG.leg_geometry()
+DT = 0.02
+FEMUR = 2
+_X, _Y, _Z = (float(v) for v in leg_to_body(stance_feet(CFG.stance("default")), GEOMETRY)[0])
+NEUTRAL = (_X, _Y, _Z)
+"""RF's neutral foot point, upright frame."""
+LOADED_A = 1.5
+"""A femur current above ``locomotion.contact_current_a``: the foot carries weight."""
+
+
+def states(t: float, angles: list[float], *, femur_a: float = 0.0) -> ServoStates:
+    """Servo states of RF at ``t``: its joints at ``angles`` (coxa…tarsus), its femur
+    drawing ``femur_a``."""
+    joints = tuple(
+        JointState(
+            leg=0,
+            joint=j,
+            servo_id=j + 1,
+            position_rad=angles[j] if j < 5 else 0.0,
+            current_a=femur_a if j == FEMUR else 0.0,
+        )
+        for j in range(7)
+    )
+    return ServoStates(t=t, source="bus", cycle=round(t / DT), joints=joints)
+
+
+def step(
+    kind: str,
+    t: float,
+    duration: float,
+    target: tuple[float, float, float],
+    *,
+    height_m: float = 0.0,
+) -> StepCommand:
+    return StepCommand(
+        t=t,
+        source="coordinator",
+        leg=0,
+        kind=kind,
+        start_t=t,
+        duration_s=duration,
+        target=target,
+        height_m=height_m,
+    )
+
+
+def goals_of(out: list[Message]) -> list[JointGoals]:
+    return [m for m in out if isinstance(m, JointGoals)]
+
+
+def run(
+    leg: LegController,
+    t0: float,
+    t1: float,
+    angles: list[float],
+    *,
+    femur_a: float | None = None,
+    steps: tuple[StepCommand, ...] = (),
+    overrides: tuple[JointGoals, ...] = (),
+    follow: bool = True,
+) -> list[Message]:
+    """Cycles from ``t0`` to ``t1``; the servos reach each goal by the next cycle when
+    ``follow``; with ``femur_a`` None the femur is loaded when the foot is on the ground."""
+    out: list[Message] = []
+    t = t0
+    first = True
+    while t < t1 - 1e-9:
+        amps = femur_a
+        if amps is None:
+            amps = LOADED_A if leg.foot is None or leg.foot[2] <= NEUTRAL[2] + 1e-4 else 0.0
+        said = leg.cycle(
+            t,
+            states(t, angles, femur_a=amps),
+            steps=steps if first else (),
+            overrides=overrides if first else (),
+        )
+        first = False
+        out.extend(said)
+        if follow:
+            for msg in goals_of(said):
+                for g in msg.goals:
+                    if g.joint < 5 and g.position_rad is not None:
+                        angles[g.joint] = g.position_rad
+        t = round(t + DT, 9)
+    return out
+
+
+def placed(contact: str = "current") -> tuple[LegController, list[float]]:
+    """RF standing on its neutral point after its first move, from a seated pose."""
+    leg = LegController(CFG, 0, name="leg-RF", contact=contact)  # type: ignore[arg-type]
+    angles = [0.0, 0.0, 0.6, -1.6, -0.5]
+    run(leg, 0.0, 1.06, angles, steps=(step("move", 0.0, 1.0, NEUTRAL),))
+    return leg, angles
+
+
+def test_nothing_is_said_before_the_first_step() -> None:
+    leg = LegController(CFG, 0, name="leg-RF")
+    assert leg.cycle(0.0, states(0.0, [0.0, 0.0, 0.5, -1.5, -0.6])) == []
+
+
+def test_the_first_move_starts_from_the_reported_pose_in_joint_space() -> None:
+    leg = LegController(CFG, 0, name="leg-RF", contact="none")
+    seated = [0.1, 0.0, 0.6, -1.6, -0.5]
+    out = run(leg, 0.0, 1.1, list(seated), steps=(step("move", 0.0, 1.0, NEUTRAL),))
+    first = goals_of(out)[0]
+    # The first goals are the pose the servos report (min-jerk at u = 0), not a jump.
+    for g in first.goals:
+        if g.joint < 5:
+            assert g.position_rad == pytest.approx(seated[g.joint], abs=1e-9)
+    # It ends on the IK of the target: the foot where it was sent.
+    assert leg.angles is not None
+    assert leg.from_leg(fk_point(leg.angles, GEOMETRY)) == pytest.approx(NEUTRAL, abs=1e-6)
+    states_said = [m for m in out if isinstance(m, LegState)]
+    assert [s.phase for s in states_said][:3] == ["move"] * 3
+    assert states_said[-1].phase == "hold"
+
+
+def test_goals_are_said_only_when_they_change_by_half_a_tick() -> None:
+    leg, angles = placed()
+    out = run(leg, 1.06, 1.5, angles)  # holding still
+    assert goals_of(out) == []
+    assert leg.angles is not None
+    leg.sent[FEMUR] = leg.angles[FEMUR] + 0.9 * HALF_TICK_RAD  # within half a tick
+    assert goals_of(run(leg, 1.5, 1.52, angles)) == []
+    leg.sent[FEMUR] = leg.angles[FEMUR] + 1.1 * HALF_TICK_RAD
+    (said,) = goals_of(run(leg, 1.52, 1.54, angles))
+    assert [g.joint for g in said.goals] == [FEMUR]
+
+
+def swing_target() -> tuple[float, float, float]:
+    return (NEUTRAL[0] + 0.05, NEUTRAL[1], NEUTRAL[2])
+
+
+def swing_ends(out: list[Message]) -> list[SwingEnded]:
+    return [m for m in out if isinstance(m, SwingEnded)]
+
+
+def test_a_swing_that_lands_where_expected_is_completed() -> None:
+    leg, angles = placed()
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
+    out: list[Message] = []
+    t = 1.1
+    while t < 1.8:
+        # The sensor feels the ground from the cycle the swing ends on (u = 1).
+        amps = LOADED_A if t >= 1.6 - 1e-9 else 0.0
+        out.extend(leg.cycle(t, states(t, angles, femur_a=amps), steps=(cmd,) if t == 1.1 else ()))
+        t = round(t + DT, 9)
+    (ended,) = swing_ends(out)
+    assert (ended.outcome, ended.leg, ended.source) == ("completed", 0, "leg-RF")
+    assert ended.ground_offset_m == pytest.approx(0.0, abs=1e-9)
+    assert any(isinstance(m, LegState) and m.phase == "swing" for m in out)
+
+
+def test_a_swing_that_ends_without_sensing_contact_is_completed() -> None:
+    leg, angles = placed("none")
+    out = run(
+        leg, 1.1, 1.8, angles, steps=(step("swing", 1.1, 0.5, swing_target(), height_m=0.04),)
+    )
+    assert [e.outcome for e in swing_ends(out)] == ["completed"]
+
+
+def test_a_swing_without_ground_ends_with_no_contact() -> None:
+    leg, angles = placed()
+    out = run(
+        leg,
+        1.1,
+        1.8,
+        angles,
+        femur_a=0.0,
+        steps=(step("swing", 1.1, 0.5, swing_target(), height_m=0.04),),
+    )
+    assert [e.outcome for e in swing_ends(out)] == ["no_contact"]
+
+
+def test_a_swing_stopped_on_the_way_down_ends_early_and_the_stance_stays_there() -> None:
+    leg, angles = placed()
+    # Ground 2 cm above the floor: contact once the descending foot is below it.
+    ground = NEUTRAL[2] + 0.02
+    out: list[Message] = []
+    t = 1.1
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
+    while t < 1.9:
+        assert leg.foot is not None
+        past_apex = (t - 1.1) / 0.5 > 0.5
+        amps = LOADED_A if past_apex and leg.foot[2] <= ground else 0.0
+        out.extend(leg.cycle(t, states(t, angles, femur_a=amps), steps=(cmd,) if t == 1.1 else ()))
+        t = round(t + DT, 9)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "early_contact"
+    assert 0.0 < ended.ground_offset_m <= 0.025
+    assert leg.foot is not None
+    assert leg.foot[2] == pytest.approx(NEUTRAL[2] + ended.ground_offset_m)
+
+
+def test_contact_on_the_way_up_is_blocked_once_and_the_swing_goes_on() -> None:
+    leg, angles = placed()
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
+    out: list[Message] = []
+    t = 1.1
+    while t < 1.8:
+        u = (t - 1.1) / 0.5
+        amps = LOADED_A if 0.1 < u < 0.3 else 0.0  # something pushes back on the way up
+        out.extend(leg.cycle(t, states(t, angles, femur_a=amps), steps=(cmd,) if t == 1.1 else ()))
+        t = round(t + DT, 9)
+    outcomes = [e.outcome for e in swing_ends(out)]
+    assert outcomes[0] == "blocked"
+    assert outcomes.count("blocked") == 1
+    assert outcomes[-1] == "no_contact"
+
+
+def test_a_contact_that_never_went_away_is_not_believed() -> None:
+    leg, angles = placed()
+    out = run(
+        leg,
+        1.1,
+        1.8,
+        angles,
+        femur_a=LOADED_A,
+        steps=(step("swing", 1.1, 0.5, swing_target(), height_m=0.04),),
+    )
+    assert [e.outcome for e in swing_ends(out)] == []
+
+
+def override(t: float, angle: float) -> JointGoals:
+    g = JointGoal(t=t, source="reflex", leg=0, joint=FEMUR, position_rad=angle)
+    return JointGoals(t=t, source="reflex", goals=(g,), reflex=True)
+
+
+def test_an_override_holds_the_joint_then_blends_back_without_a_jump() -> None:
+    leg, angles = placed("none")
+    own = angles[FEMUR]
+    hold, blend = CFG.locomotion.reflex_hold_s, CFG.locomotion.reflex_blend_s
+    out = run(leg, 2.0, 2.0 + hold + blend + 0.2, angles, overrides=(override(2.0, own + 0.4),))
+    said = goals_of(out)
+    assert not any(m.reflex for m in said)  # the bus gets the leg's own goals only
+    femur = [
+        (m.t, g.position_rad)
+        for m in said
+        for g in m.goals
+        if g.joint == FEMUR and g.position_rad is not None
+    ]
+    assert femur[0] == (2.0, own + 0.4)  # taken at once
+    assert all(a == own + 0.4 for t, a in femur if t <= 2.0 + hold)
+    back = [a for t, a in femur if t > 2.0 + hold]
+    assert back
+    steps_ = [abs(b - a) for a, b in zip([own + 0.4, *back], back, strict=False)]
+    assert max(steps_) < 0.05  # no jump
+    assert back[-1] == pytest.approx(own, abs=HALF_TICK_RAD)
+    phases = [(m.t, m.phase) for m in out if isinstance(m, LegState)]
+    assert all((p == "reflex") == (t <= 2.0 + hold) for t, p in phases)
+
+
+def test_an_override_for_another_leg_or_the_wheel_is_ignored() -> None:
+    leg, angles = placed("none")
+    other = JointGoal(t=2.0, source="reflex", leg=1, joint=FEMUR, position_rad=0.3)
+    wheel = JointGoal(t=2.0, source="reflex", leg=0, joint=6, position_rad=0.3)
+    nan = JointGoal(t=2.0, source="reflex", leg=0, joint=FEMUR, position_rad=math.nan)
+    msgs = (JointGoals(t=2.0, source="reflex", goals=(other, wheel, nan), reflex=True),)
+    out = run(leg, 2.0, 2.1, angles, overrides=msgs)
+    assert goals_of(out) == []
+    assert leg.overrides == {}
+
+
+def test_an_unreachable_foot_holds_the_last_good_pose_and_says_so_once() -> None:
+    leg, angles = placed("none")
+    before = list(angles)
+    far = (NEUTRAL[0] + 2.0, NEUTRAL[1], NEUTRAL[2])
+    out = run(leg, 2.0, 2.5, angles, steps=(step("move", 2.0, 0.2, far),))
+    failures = [m for m in out if isinstance(m, IkFailed)]
+    assert len(failures) == 1
+    assert 2.0 <= failures[0].t <= 2.2  # stamped with the clock's time handed in
+    assert angles[FEMUR] == pytest.approx(before[FEMUR], abs=0.2)
+    assert [m.ik_ok for m in out if isinstance(m, LegState)][-1] is False
+
+
+def test_the_wheel_steers_to_the_heading_less_the_coxa_and_stops_in_the_air() -> None:
+    leg, angles = placed("none")
+    motion = BodyMotion(
+        t=2.0,
+        source="coordinator",
+        cycle=100,
+        twist=(0.0, 0.0, 0.0),
+        pose=(0.0,) * 6,
+        trochanter_rad=0.0,
+        upside_down=False,
+        steer=True,
+        wheel_heading_rad=(0.3,) * 6,
+        wheel_speed_m_s=(0.1,) * 6,
+    )
+    out = leg.cycle(2.0, states(2.0, angles), motion=motion)
+    (said,) = goals_of(out)
+    by_joint = {g.joint: g for g in said.goals}
+    assert leg.angles is not None
+    assert by_joint[5].position_rad == pytest.approx(0.3 - leg.angles[0])  # s·ψ − coxa, s = 1
+    assert by_joint[6].velocity_rad_s == pytest.approx(0.1 / GEOMETRY.wheel_radius)
