@@ -9,8 +9,6 @@
 * :mod:`~whexar.actors.imu` — :class:`~whexar.actors.imu.ImuReader`, the LSM9DS1 on I²C;
 * :mod:`~whexar.actors.locomotion` — the leg actors (one per leg: steps, IK, wheel,
   contact, overrides) and the coordinator, each a shell around a pure core;
-* :mod:`~whexar.actors.coordinator` — :class:`~whexar.actors.coordinator.Coordinator`:
-  gaits, riding, the hybrid gait, stances, the leg flip;
 * :mod:`~whexar.actors.commands` — :class:`~whexar.actors.commands.CommandSource`:
   command scripts, stdin and the keyboard.
 

@@ -421,7 +421,7 @@ class AccelPlausible(Event):
 
 
 # --------------------------------------------------------------------------- locomotion
-# The coordinator and the six leg actors (whexar.actors.coordinator, whexar.actors.leg).
+# The coordinator and the six leg actors (whexar.actors.locomotion).
 # Points are in the body frame (x forward, y left, z up; metres) unless a name says
 # otherwise; legs are indices 0…5 in LEG_NAMES order.
 

@@ -135,7 +135,7 @@ def test_the_first_move_starts_from_the_reported_pose_in_joint_space() -> None:
             assert g.position_rad == pytest.approx(seated[g.joint], abs=1e-9)
     # It ends on the IK of the target: the foot where it was sent.
     assert leg.angles is not None
-    assert leg.from_leg(fk_point(leg.angles, GEOMETRY)) == pytest.approx(NEUTRAL, abs=1e-6)
+    assert leg.frame.from_leg(fk_point(leg.angles, GEOMETRY)) == pytest.approx(NEUTRAL, abs=1e-6)
     states_said = [m for m in out if isinstance(m, LegState)]
     assert [s.phase for s in states_said][:3] == ["move"] * 3
     assert states_said[-1].phase == "hold"

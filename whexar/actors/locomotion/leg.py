@@ -15,6 +15,8 @@ told in its module.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from pydantic import field_validator
 
 from whexar.actors.locomotion.leg_controller import LegController
@@ -51,6 +53,8 @@ class LegActor(Actor):
             return value
 
     params: Params
+    controller: ClassVar[type[LegController]] = LegController
+    """The policy this actor runs (a subclass may add, e.g., a stopwatch)."""
     servo_state = Input(ServoStates)
     steps = Input(StepCommand, optional=True)
     motion = Input(BodyMotion, optional=True)
@@ -67,7 +71,7 @@ class LegActor(Actor):
         cfg = load_config(p.config) if p.config else RobotConfig()
         state_out = self.state if self.state.connected else None
         swings_out = self.swings if self.swings.connected else None
-        leg = LegController(
+        leg = self.controller(
             cfg, leg_index(p.leg), name=self.name, contact=p.contact, report=state_out is not None
         )
         # Looked up once, not every cycle: a port attribute is a descriptor and a mapping

@@ -60,9 +60,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
 from typing import Final
 
+from whexar.actors.locomotion.frames import LegFrame
+from whexar.actors.locomotion.steps import Step, advance
 from whexar.actors.messages import (
     BodyMotion,
     IkFailed,
@@ -76,13 +77,11 @@ from whexar.actors.messages import (
 )
 from whexar.config import ContactSource, RobotConfig
 from whexar.errors import KinematicsError
-from whexar.kinematics.geometry import SIDE_SIGN
 from whexar.kinematics.leg import fk_point, ik_point
-from whexar.kinematics.trajectory import SwingOutcome, SwingTable, min_jerk, swing_table
+from whexar.kinematics.trajectory import SwingOutcome, min_jerk, swing_table
 from whexar.robot import N_JOINTS
 from whexar.runtime.messages import Message
 
-STEP_KINDS: Final = ("swing", "stance", "move", "hold")
 FSR_FRESH_S: Final = 0.5
 """Force-sensor frames older than this no longer count (auto falls back to the current)."""
 MIN_SIN: Final = 0.05
@@ -93,22 +92,6 @@ HALF_TICK_RAD: Final = math.pi / 4096
 """Half a Goal Position tick (0.088°): goals closer than this reach the wire unchanged."""
 _POSITIONING: Final = 5
 _WHEEL: Final = 6
-
-
-@dataclass(slots=True)
-class _Step:
-    kind: str
-    start_t: float
-    duration: float
-    origin: list[float]
-    target: tuple[float, float, float]
-    height: float
-    shape: SwingTable | None
-    joint_space: tuple[list[float], list[float]] | None = None
-    lifted: bool = False
-    """A swing's foot was seen off the ground (so a contact now is new ground)."""
-    reported: bool = False
-    ended: bool = False
 
 
 class LegController:
@@ -132,10 +115,9 @@ class LegController:
         self.report = report
         self.geometry = cfg.leg_geometry()
         self.contact_source: ContactSource = contact or self.loco.contact
-        mount = self.geometry.mounts[leg]
-        self.mount = (float(mount[0]), float(mount[1]), float(mount[2]))
-        self.side = float(SIDE_SIGN[leg])
-        self.upside_down = False
+        self.frame = LegFrame(self.geometry, leg)
+        """This leg's frame in the upright frame, through the body pose."""
+        self.side = self.frame.side
         self.flip: tuple[float, float, float] | None = None
         """(start_t, from, to) of a trochanter flip under way."""
         self.flip_to = False
@@ -145,10 +127,8 @@ class LegController:
         """The last good positioning angles (coxa…tarsus) from the IK."""
         self.measured: list[float | None] = [None] * N_JOINTS
         self.currents: list[float | None] = [None] * N_JOINTS
-        self.step: _Step | None = None
+        self.step: Step | None = None
         self.twist = (0.0, 0.0, 0.0)
-        self.pose: tuple[float, ...] = (0.0,) * 6
-        self.rotation: tuple[float, ...] | None = None
         self.last_t: float | None = None
         self.cycle_no = 0
         self.ik_ok = True
@@ -171,41 +151,6 @@ class LegController:
         self._out: list[Message] = []
         self._now = 0.0
 
-    # ----------------------------------------------------------------- frames
-
-    def _frame(self) -> tuple[float, float, float]:
-        """(side sign, mount y, mount z) of this leg in the upright frame (mirrored flipped)."""
-        if self.upside_down:
-            return -self.side, -self.mount[1], -self.mount[2]
-        return self.side, self.mount[1], self.mount[2]
-
-    def to_leg(self, p: list[float] | tuple[float, float, float]) -> tuple[float, float, float]:
-        """Upright-frame point → this leg's frame, through the body pose (p' = Rᵀ(p − t))."""
-        x, y, z = p
-        if self.rotation is not None:
-            px, py, pz = x - self.pose[0], y - self.pose[1], z - self.pose[2]
-            r = self.rotation
-            x = r[0] * px + r[3] * py + r[6] * pz
-            y = r[1] * px + r[4] * py + r[7] * pz
-            z = r[2] * px + r[5] * py + r[8] * pz
-        side, my, mz = self._frame()
-        return -side * (y - my), -(z - mz), x - self.mount[0]
-
-    def from_leg(self, q: tuple[float, float, float]) -> tuple[float, float, float]:
-        """This leg's frame → upright frame (the pose undone)."""
-        side, my, mz = self._frame()
-        x = self.mount[0] + q[2]
-        y = my - side * q[0]
-        z = mz - q[1]
-        if self.rotation is not None:
-            r = self.rotation
-            x, y, z = (
-                r[0] * x + r[1] * y + r[2] * z + self.pose[0],
-                r[3] * x + r[4] * y + r[5] * z + self.pose[1],
-                r[6] * x + r[7] * y + r[8] * z + self.pose[2],
-            )
-        return x, y, z
-
     # ----------------------------------------------------------------- inputs
 
     def _take_motion(self, motion: BodyMotion | None) -> None:
@@ -215,35 +160,16 @@ class LegController:
         self.steer = motion.steer and not motion.upside_down
         self.heading = motion.wheel_heading_rad[self.leg]
         self.speed = motion.wheel_speed_m_s[self.leg]
-        if motion.pose != self.pose:
-            self.pose = motion.pose
-            if any(motion.pose):
-                _, _, _, roll, pitch, yaw = motion.pose
-                cr, sr = math.cos(roll), math.sin(roll)
-                cp, sp = math.cos(pitch), math.sin(pitch)
-                cy, sy = math.cos(yaw), math.sin(yaw)
-                # R = R_z(yaw) · R_y(pitch) · R_x(roll), row-major (kinematics.body.BodyPose).
-                self.rotation = (
-                    cy * cp,
-                    cy * sp * sr - sy * cr,
-                    cy * sp * cr + sy * sr,
-                    sy * cp,
-                    sy * sp * sr + cy * cr,
-                    sy * sp * cr - cy * sr,
-                    -sp,
-                    cp * sr,
-                    cp * cr,
-                )
-            else:
-                self.rotation = None
-        if motion.upside_down != self.upside_down and self.flip is None:
+        if motion.pose != self.frame.pose:
+            self.frame.set_pose(motion.pose)
+        if motion.upside_down != self.frame.upside_down and self.flip is None:
             self.flip = (
                 motion.t,
-                FLIPPED_TROCHANTER if self.upside_down else self.trochanter,
+                FLIPPED_TROCHANTER if self.frame.upside_down else self.trochanter,
                 FLIPPED_TROCHANTER if motion.upside_down else 0.0,
             )
             self.flip_to = motion.upside_down
-        if self.flip is None and not self.upside_down:
+        if self.flip is None and not self.frame.upside_down:
             self.trochanter = motion.trochanter_rad
 
     def _begin(self, cmd: StepCommand) -> None:
@@ -259,10 +185,10 @@ class LegController:
             if goal is None:
                 goal = list(start)
             joint_space = (start, goal)
-            origin = list(self.from_leg(fk_point(start, self.geometry)))
+            origin = list(self.frame.from_leg(fk_point(start, self.geometry)))
         elif cmd.kind in ("stance", "hold") and self.foot is None:
             return  # nothing to hold yet: the first command must place the foot
-        self.step = _Step(
+        self.step = Step(
             cmd.kind,
             cmd.start_t,
             max(cmd.duration_s, 1e-6),
@@ -328,70 +254,7 @@ class LegController:
 
     # ----------------------------------------------------------------- the foot
 
-    def _advance(self, t: float, dt: float, contact: bool, source: str) -> tuple[str, float]:
-        step, foot = self.step, self.foot
-        if step is None or foot is None:
-            return "idle", 0.0
-        u = (t - step.start_t) / step.duration
-        u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
-        if step.kind == "swing" and not step.ended:
-            assert step.shape is not None
-            f, h = step.shape.at(u)
-            o, g = step.origin, step.target
-            foot[0] = o[0] + (g[0] - o[0]) * f
-            foot[1] = o[1] + (g[1] - o[1]) * f
-            foot[2] = o[2] + (g[2] - o[2]) * f + step.height * h
-            if source != "none":
-                self._adapt(t, step, u, contact)
-            elif u >= 1.0:
-                step.ended = True
-                self._swing_ended(t, "completed", step)
-            return "swing", u
-        if step.kind == "move" and not step.ended:
-            s = min_jerk(u)
-            o, g = step.origin, step.target
-            foot[0] = o[0] + (g[0] - o[0]) * s
-            foot[1] = o[1] + (g[1] - o[1]) * s
-            foot[2] = o[2] + (g[2] - o[2]) * s + step.height * math.sin(math.pi * u)
-            if u >= 1.0:
-                step.ended = True  # its last pose (joint space included) is sent this cycle
-            return "move", u
-        # On the ground: the body carries the foot (stance, hold, a finished swing or move).
-        vx, vy, w = self.twist
-        if dt > 0.0 and (vx or vy or w):
-            x, y = foot[0], foot[1]
-            if w:
-                c, s_ = math.cos(-w * dt), math.sin(-w * dt)
-                x, y = c * x - s_ * y, s_ * x + c * y
-            foot[0], foot[1] = x - vx * dt, y - vy * dt
-        kind = "stance" if step.kind in ("swing", "stance") else "hold"
-        return kind, u
-
-    def _adapt(self, t: float, step: _Step, u: float, contact: bool) -> None:
-        """Adaptive swing (Diosdado 2014, 3.5–3.6) on the contact reading of this cycle."""
-        assert step.shape is not None
-        if not contact:
-            if u > 0.0:
-                step.lifted = True
-            if u >= 1.0:
-                step.ended = True
-                self._swing_ended(t, "no_contact", step)
-            return
-        if not step.lifted or u <= 0.0:
-            return  # still on the ground at lift-off, or a sensor stuck on
-        if u >= 1.0:
-            step.ended = True
-            self._swing_ended(t, "completed", step)  # touchdown where expected
-            return
-        if u < step.shape.apex_u:
-            if not step.reported:
-                step.reported = True
-                self._swing_ended(t, "blocked", step)  # the elevator reflex's case
-            return
-        step.ended = True
-        self._swing_ended(t, "early_contact", step)
-
-    def _swing_ended(self, t: float, outcome: SwingOutcome, step: _Step) -> None:
+    def _swing_ended(self, t: float, outcome: SwingOutcome, step: Step) -> None:
         assert self.foot is not None
         self._out.append(
             SwingEnded(
@@ -406,9 +269,9 @@ class LegController:
     # ----------------------------------------------------------------- IK and goals
 
     def _solve(self, p: list[float] | tuple[float, float, float]) -> list[float] | None:
-        pitch = 0.0 if self.upside_down or self.flip is not None else self.trochanter
+        pitch = 0.0 if self.frame.upside_down or self.flip is not None else self.trochanter
         try:
-            solution = ik_point(self.to_leg(p), self.geometry, pitch=pitch, target="contact")
+            solution = ik_point(self.frame.to_leg(p), self.geometry, pitch=pitch, target="contact")
         except KinematicsError as exc:
             if self.ik_ok:
                 self.ik_ok = False
@@ -428,12 +291,12 @@ class LegController:
 
     def _trochanter_at(self, t: float) -> float:
         if self.flip is None:
-            return FLIPPED_TROCHANTER if self.upside_down else self.trochanter
+            return FLIPPED_TROCHANTER if self.frame.upside_down else self.trochanter
         start, a, b = self.flip
         u = (t - start) / self.loco.flip_s
         if u >= 1.0:
             self.flip = None
-            self.upside_down = self.flip_to
+            self.frame.upside_down = self.flip_to
             if self.foot is not None:
                 self.foot[1] = -self.foot[1]  # the same leg pose, seen from the other side
             return b
@@ -445,13 +308,13 @@ class LegController:
         The bus keeps a joint's goal until a new one comes, and sends a servo its goal
         again on its own before the Bus Watchdog would expire: an unchanged goal need not
         travel. A position within half a Goal Position tick of the last is unchanged."""
-        if self.steer and not self.upside_down:
+        if self.steer and not self.frame.upside_down:
             # direction = s·ψ − coxa (wheels.direction_for_heading, 5.1), within one turn.
             direction = self.side * self.heading - angles[0]
             direction = (direction + math.pi) % (2 * math.pi) - math.pi
         else:
             direction = 0.0
-        speed = 0.0 if airborne or not self.steer or self.upside_down else self.speed
+        speed = 0.0 if airborne or not self.steer or self.frame.upside_down else self.speed
         last = self.sent
         name, leg = self.name, self.leg
         goals = []
@@ -518,7 +381,13 @@ class LegController:
                 self._begin(cmd)
         contact, source = self._contact(t)
         self.contact = contact
-        phase, progress = self._advance(t, dt, contact, source)
+        phase, progress = "idle", 0.0
+        if self.step is not None and self.foot is not None:
+            phase, progress, outcome = advance(
+                self.step, self.foot, self.twist, t, dt, contact, source
+            )
+            if outcome is not None:
+                self._swing_ended(t, outcome, self.step)
         if self.foot is None:
             return out  # no command yet: the bus holds the servos where they stand
         troch = self._trochanter_at(t)
@@ -564,9 +433,9 @@ class LegController:
             trochanter = troch  # a plan that does not read it (the default) leaves its goal
         if coxa is not None and femur is not None and tibia is not None and tarsus is not None:
             q = fk_point((coxa, trochanter, femur, tibia, tarsus), self.geometry)
-            if self.upside_down:
+            if self.frame.upside_down:
                 q = (q[0], -q[1], q[2])
-            measured = self.from_leg(q)
+            measured = self.frame.from_leg(q)
         assert self.foot is not None
         foot = self.foot
         return LegState(

@@ -1,0 +1,265 @@
+"""The coordinator's policy, called directly: no runtime, no bus, no clock (milliseconds).
+
+The legs are perfect here: each foot is at its last step's target once the step's time is
+over (and on its way, linearly, before).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import pytest
+
+from whexar.actors.locomotion.activity import TRANSITIONS, Activity, ActivityError, checked
+from whexar.actors.locomotion.intent import Wanted, take_command
+from whexar.actors.locomotion.planner import LocomotionPlanner
+from whexar.actors.messages import (
+    BodyMotion,
+    CommandClamped,
+    CommandRefused,
+    LegState,
+    LocomotionChanged,
+    LocomotionState,
+    MotionCommand,
+    ServoStates,
+    StepCommand,
+    SwingDelayed,
+)
+from whexar.config import RobotConfig
+from whexar.kinematics.gait import TRIPOD
+from whexar.robot import LEG_NAMES, N_LEGS
+from whexar.runtime.messages import Message
+
+CFG = RobotConfig()
+DT = 0.01
+
+
+def cmd(**fields: object) -> MotionCommand:
+    return MotionCommand(t=0.0, source="test", **fields)  # type: ignore[arg-type]
+
+
+class PerfectLegs:
+    """Six legs that carry out every step exactly: linearly from where they were."""
+
+    def __init__(self) -> None:
+        self.steps: dict[int, tuple[StepCommand, tuple[float, float, float]]] = {}
+        self.feet: dict[int, tuple[float, float, float]] = {}
+
+    def take(self, step: StepCommand) -> None:
+        start = self.feet.get(step.leg, step.target)
+        self.steps[step.leg] = (step, start)
+
+    def states(self, t: float, cycle: int) -> list[LegState]:
+        out = []
+        for leg, (step, start) in self.steps.items():
+            u = min(max((t - step.start_t) / step.duration_s, 0.0), 1.0)
+            foot = (
+                start[0] + (step.target[0] - start[0]) * u,
+                start[1] + (step.target[1] - start[1]) * u,
+                start[2] + (step.target[2] - start[2]) * u,
+            )
+            self.feet[leg] = foot
+            out.append(
+                LegState(
+                    t=t,
+                    source=f"leg-{LEG_NAMES[leg]}",
+                    leg=leg,
+                    cycle=cycle,
+                    phase=step.kind,
+                    progress=u,
+                    foot=foot,
+                    measured_foot=None,
+                    contact=True,
+                    contact_source="none",
+                    load=(None, None),
+                )
+            )
+        return out
+
+
+def drive(
+    planner: LocomotionPlanner,
+    legs: PerfectLegs,
+    t0: float,
+    t1: float,
+    commands: Mapping[float, MotionCommand] = {},
+) -> list[Message]:
+    """Cycles every :data:`DT` from ``t0`` to ``t1``; each command at its time."""
+    said: list[Message] = []
+    n = round((t1 - t0) / DT)
+    for k in range(n):
+        t = round(t0 + k * DT, 9)
+        cycle = round(t / DT)
+        states = ServoStates(t=t, source="bus", cycle=cycle, joints=())
+        now = [c for at, c in commands.items() if abs(at - t) < DT / 2]
+        out = planner.cycle(states, commands=now, legs=legs.states(t, cycle))
+        for msg in out:
+            if isinstance(msg, StepCommand):
+                legs.take(msg)
+        said.extend(out)
+    return said
+
+
+def standing() -> tuple[LocomotionPlanner, PerfectLegs]:
+    planner = LocomotionPlanner(CFG, name="coordinator")
+    legs = PerfectLegs()
+    drive(planner, legs, 0.0, CFG.locomotion.stand_up_s + 0.3)
+    assert planner.activity == Activity.STANDING
+    return planner, legs
+
+
+def activities(said: list[Message]) -> list[tuple[str, str]]:
+    return [
+        (e.before, e.after)
+        for e in said
+        if isinstance(e, LocomotionChanged) and e.what == "activity"
+    ]
+
+
+# --------------------------------------------------------------------------- activities
+
+
+def test_every_activity_has_its_transitions_and_seated_is_left_only_by_a_flip() -> None:
+    assert set(TRANSITIONS) == set(Activity)
+    for before, after in TRANSITIONS.items():
+        assert before not in after
+        if before not in (Activity.SEATED, Activity.SITTING_DOWN):
+            assert Activity.SITTING_DOWN in after  # a stop can always sit down
+    assert TRANSITIONS[Activity.SEATED] == {Activity.FLIPPING}
+    assert TRANSITIONS[Activity.SITTING_DOWN] == {Activity.SEATED}
+
+
+def test_a_change_the_table_does_not_hold_is_an_error() -> None:
+    assert checked(Activity.STANDING, Activity.WALKING) is Activity.WALKING
+    with pytest.raises(ActivityError, match="seated cannot change to walking"):
+        checked(Activity.SEATED, Activity.WALKING)
+    planner = LocomotionPlanner(CFG, name="coordinator")
+    planner.activity = Activity.SITTING_DOWN
+    with pytest.raises(ActivityError):
+        planner.set_activity(Activity.WALKING)
+
+
+# --------------------------------------------------------------------------- scripts
+
+
+def test_it_stands_up_in_two_moves_of_every_leg() -> None:
+    planner = LocomotionPlanner(CFG, name="coordinator")
+    legs = PerfectLegs()
+    said = drive(planner, legs, 0.0, CFG.locomotion.stand_up_s + 0.3)
+    moves = [m for m in said if isinstance(m, StepCommand)]
+    assert [m.kind for m in moves] == ["move"] * 12
+    assert sorted(m.leg for m in moves[:6]) == list(range(N_LEGS))
+    seated, stood = moves[0].target[2], moves[6].target[2]
+    assert seated == pytest.approx(-CFG.locomotion.sit_height_mm / 1000)
+    assert stood == pytest.approx(-CFG.stance("default").height)
+    assert activities(said) == [("standing_up", "standing")]
+    # Every cycle says the body motion, then the state.
+    motions = [m for m in said if isinstance(m, BodyMotion)]
+    states = [m for m in said if isinstance(m, LocomotionState)]
+    assert len(motions) == len(states) == round((CFG.locomotion.stand_up_s + 0.3) / DT)
+    assert isinstance(said[-1], LocomotionState)
+    assert states[-1].activity == "standing"
+
+
+def test_a_tripod_walk_lifts_one_group_at_a_time_and_keeps_its_margin() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    said = drive(planner, legs, t0, t0 + 6.0, {t0: cmd(vx_m_s=0.1)})
+    swings = [m for m in said if isinstance(m, StepCommand) and m.kind == "swing"]
+    assert len(swings) >= 12
+    groups = {frozenset(LEG_NAMES.index(n) for n in g) for g in TRIPOD.groups}
+    by_time: dict[float, set[int]] = {}
+    for s in swings:
+        by_time.setdefault(s.t, set()).add(s.leg)
+    assert {frozenset(legs_) for legs_ in by_time.values()} <= groups
+    states = [m for m in said if isinstance(m, LocomotionState) and m.activity == "walking"]
+    assert states
+    minimum = CFG.locomotion.min_stability_margin_mm / 1000
+    assert min(s.margin_m for s in states) >= minimum
+    assert max(s.twist[0] for s in states) == pytest.approx(0.1)
+    assert not [m for m in said if isinstance(m, SwingDelayed)]
+
+
+def test_a_gait_change_winds_down_first() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    said = drive(planner, legs, t0, t0 + 8.0, {t0: cmd(vx_m_s=0.1), t0 + 3.0: cmd(gait="ripple")})
+    changes = [e for e in said if isinstance(e, LocomotionChanged) and e.what == "gait"]
+    assert [(e.before, e.after) for e in changes] == [("tripod", "ripple")]
+    # When the gait changed the body was still and no leg was in the air.
+    at = changes[0].t
+    state = next(m for m in said if isinstance(m, LocomotionState) and m.t >= at)
+    assert state.twist == (0.0, 0.0, 0.0)
+    assert state.swing_legs == ()
+    assert planner.gait.name == "ripple"
+    assert ("standing", "walking") in activities(said)
+
+
+def test_a_safe_stop_sits_down_and_refuses_what_comes_after() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    drive(planner, legs, t0, t0 + 2.0, {t0: cmd(vx_m_s=0.1)})
+    assert planner.begin_sit(t0 + 2.0)
+    said = drive(planner, legs, t0 + 2.0, t0 + 4.5, {t0 + 2.5: cmd(vx_m_s=0.1)})
+    assert activities(said)[-2:] == [("walking", "sitting_down"), ("sitting_down", "seated")]
+    (refused,) = [e for e in said if isinstance(e, CommandRefused)]
+    assert refused.reason == "a safe stop is under way"
+    assert not planner.begin_sit(t0 + 4.5)  # seated already
+    assert all(f is not None and f[2] > -0.1 for f in legs.feet.values())
+
+
+def test_no_sit_down_when_the_bus_went_silent() -> None:
+    planner, _ = standing()
+    assert not planner.begin_sit(planner.last_states_t + 0.5)
+
+
+# --------------------------------------------------------------------------- commands
+
+
+def test_a_bad_command_is_refused_whole() -> None:
+    want = Wanted.of(CFG)
+    before = Wanted.of(CFG)
+    for bad, reason in [
+        (cmd(vx_m_s=0.1, gait="gallop"), "unknown gait"),
+        (cmd(mode="fly"), "unknown mode"),
+        (cmd(stance="squat"), "unknown stance"),
+        (cmd(vx_m_s=math.nan), "not a finite number"),
+        (cmd(mode="ride", upside_down=True), "upside down"),
+        (cmd(vx_m_s=0.1, turn_radius_m=0.05), "inside the body"),
+    ]:
+        (event,) = take_command(want, bad, CFG, t=1.0, source="coordinator")
+        assert isinstance(event, CommandRefused)
+        assert reason in event.reason
+        assert want == before
+
+
+def test_a_command_beyond_a_limit_is_clamped_and_the_rest_applies() -> None:
+    want = Wanted.of(CFG)
+    events = take_command(
+        want, cmd(vx_m_s=0.05, step_height_m=1.0, roll_rad=1.0), CFG, t=1.0, source="c"
+    )
+    assert [(e.field, e.applied) for e in events if isinstance(e, CommandClamped)] == [
+        ("step_height_m", CFG.locomotion.max_step_height_mm / 1000),
+        ("roll_rad", math.radians(20.0)),
+    ]
+    assert want.vx == 0.05
+    assert want.step_height == CFG.locomotion.max_step_height_mm / 1000
+
+
+def test_a_turn_radius_sets_the_yaw_rate_from_the_speed() -> None:
+    want = Wanted.of(CFG)
+    take_command(want, cmd(vx_m_s=0.1, turn_radius_m=1.0), CFG, t=0.0, source="c")
+    vx, vy, w = want.twist()
+    assert (vx, vy) == (0.1, 0.0)
+    assert w == pytest.approx(0.1)
+    take_command(want, cmd(yaw_rate_rad_s=0.2), CFG, t=0.0, source="c")
+    assert want.twist() == (0.1, 0.0, 0.2)
+
+
+def test_too_fast_a_walk_is_clamped_once_per_command() -> None:
+    planner, legs = standing()
+    said = drive(planner, legs, 3.0, 4.0, {3.0: cmd(vx_m_s=5.0)})
+    (clamped,) = [e for e in said if isinstance(e, CommandClamped)]
+    assert clamped.field == "speed"
+    assert 0.0 < clamped.applied < 5.0

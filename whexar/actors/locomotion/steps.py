@@ -1,0 +1,121 @@
+"""A leg's step under way: the foot's path and the adaptive swing (Diosdado 2014, 3.3–3.6).
+
+A :class:`Step` is what a :class:`~whexar.actors.messages.StepCommand` became
+when the leg took it: where the foot started, where it goes, and how the
+swing has gone so far. :func:`advance` moves the foot along it to a time:
+
+* a swing follows its shape (:class:`~whexar.kinematics.trajectory.SwingTable`)
+  from the lift-off point to the target, the apex ``height`` above the line
+  between them; with contact sensing it adapts (below);
+* a move follows a minimum-jerk path, lifted by ``height`` on the way;
+* on the ground — stance, hold, a finished swing or move — the body carries
+  the foot: p ← p − (v + ω ẑ × p)·dt.
+
+Adaptive swing: a contact that comes once the foot has been seen off the
+ground is new ground. Before the apex it is an obstacle on the way up
+(``blocked``, said once; the swing goes on); from the apex on the foot stops
+there (``early_contact``) and the stance continues from that height; at the
+end of the swing it is ``completed``, and no contact then is ``no_contact``.
+A contact that never went away after lift-off is not believed (a stuck
+sensor). Plain functions over plain data: no time is read, nothing is sent.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from whexar.kinematics.trajectory import SwingOutcome, SwingTable, min_jerk
+
+
+@dataclass(slots=True)
+class Step:
+    """A step under way (module docstring)."""
+
+    kind: str
+    """swing, stance, move or hold."""
+    start_t: float
+    duration: float
+    origin: list[float]
+    target: tuple[float, float, float]
+    height: float
+    shape: SwingTable | None
+    joint_space: tuple[list[float], list[float]] | None = None
+    """A move made in joint space: (start, goal) angles (the first move after start)."""
+    lifted: bool = False
+    """A swing's foot was seen off the ground (so a contact now is new ground)."""
+    reported: bool = False
+    ended: bool = False
+
+
+def advance(
+    step: Step,
+    foot: list[float],
+    twist: tuple[float, float, float],
+    t: float,
+    dt: float,
+    contact: bool,
+    source: str,
+) -> tuple[str, float, SwingOutcome | None]:
+    """Move ``foot`` (upright frame, in place) along ``step`` to time ``t``; ``dt`` since the
+    last cycle, ``twist`` the body's, ``contact`` this cycle's reading from ``source``
+    (``"none"``: the leg senses no contact). Returns the phase (swing, move, stance, hold),
+    the progress through the step and, when the swing ended now, how."""
+    u = (t - step.start_t) / step.duration
+    u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
+    if step.kind == "swing" and not step.ended:
+        assert step.shape is not None
+        f, h = step.shape.at(u)
+        o, g = step.origin, step.target
+        foot[0] = o[0] + (g[0] - o[0]) * f
+        foot[1] = o[1] + (g[1] - o[1]) * f
+        foot[2] = o[2] + (g[2] - o[2]) * f + step.height * h
+        if source != "none":
+            return "swing", u, _adapt(step, u, contact)
+        if u >= 1.0:
+            step.ended = True
+            return "swing", u, "completed"
+        return "swing", u, None
+    if step.kind == "move" and not step.ended:
+        s = min_jerk(u)
+        o, g = step.origin, step.target
+        foot[0] = o[0] + (g[0] - o[0]) * s
+        foot[1] = o[1] + (g[1] - o[1]) * s
+        foot[2] = o[2] + (g[2] - o[2]) * s + step.height * math.sin(math.pi * u)
+        if u >= 1.0:
+            step.ended = True  # its last pose (joint space included) is sent this cycle
+        return "move", u, None
+    # On the ground: the body carries the foot (stance, hold, a finished swing or move).
+    vx, vy, w = twist
+    if dt > 0.0 and (vx or vy or w):
+        x, y = foot[0], foot[1]
+        if w:
+            c, s_ = math.cos(-w * dt), math.sin(-w * dt)
+            x, y = c * x - s_ * y, s_ * x + c * y
+        foot[0], foot[1] = x - vx * dt, y - vy * dt
+    kind = "stance" if step.kind in ("swing", "stance") else "hold"
+    return kind, u, None
+
+
+def _adapt(step: Step, u: float, contact: bool) -> SwingOutcome | None:
+    """Adaptive swing (Diosdado 2014, 3.5–3.6) on the contact reading of this cycle."""
+    assert step.shape is not None
+    if not contact:
+        if u > 0.0:
+            step.lifted = True
+        if u >= 1.0:
+            step.ended = True
+            return "no_contact"
+        return None
+    if not step.lifted or u <= 0.0:
+        return None  # still on the ground at lift-off, or a sensor stuck on
+    if u >= 1.0:
+        step.ended = True
+        return "completed"  # touchdown where expected
+    if u < step.shape.apex_u:
+        if not step.reported:
+            step.reported = True
+            return "blocked"  # the elevator reflex's case
+        return None
+    step.ended = True
+    return "early_contact"
