@@ -527,7 +527,7 @@ class ImuSpec(Section):
     """A sample whose acceleration is further than this from 1 g gives no tilt."""
 
     def problems(self, at: str) -> list[Problem]:
-        # One late sample must not read as a stale link (whexar.actors.imu).
+        # One late sample must not read as a stale link (whexar.actors.sensing.imu).
         if self.stale_after_s < 2.0 / self.rate_hz:
             return [
                 Problem(

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import pytest
 
-from whexar.actors.imu import ImuReader, open_bus
 from whexar.actors.messages import (
     AccelImplausible,
     AccelPlausible,
@@ -26,6 +25,7 @@ from whexar.actors.messages import (
     SensorLinkStale,
     SensorLinkUp,
 )
+from whexar.actors.sensing.imu import ImuReader, open_bus
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed, Event, TickOverrun

@@ -2,7 +2,7 @@
 
 Each test registers a :class:`SensorBoardEmulator` (the firmware's arithmetic, frame for
 frame, each frame arriving when its last byte would) and runs the real
-:class:`~whexar.actors.sensors.SensorReader`, then checks what it published and reported.
+:class:`~whexar.actors.sensing.SensorReader`, then checks what it published and reported.
 """
 
 from __future__ import annotations

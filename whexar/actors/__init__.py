@@ -4,9 +4,8 @@
   sensor frames, ranges, loads, tilt, and the devices' events;
 * :mod:`~whexar.actors.bus` — :class:`~whexar.actors.bus.BusScheduler`, the only owner
   of the servo bus;
-* :mod:`~whexar.actors.sensors` — :class:`~whexar.actors.sensors.SensorReader`, the
-  sensor board's serial line;
-* :mod:`~whexar.actors.imu` — :class:`~whexar.actors.imu.ImuReader`, the LSM9DS1 on I²C;
+* :mod:`~whexar.actors.sensing` — the sensor board's reader (its serial line) and the
+  IMU's (the LSM9DS1 on I²C);
 * :mod:`~whexar.actors.locomotion` — the leg actors (one per leg: steps, IK, wheel,
   contact, overrides) and the coordinator, each a shell around a pure core;
 * :mod:`~whexar.actors.commands` — :class:`~whexar.actors.commands.CommandSource`:

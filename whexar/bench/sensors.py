@@ -4,7 +4,7 @@
   :class:`~whexar.sensors.frame.FrameDecoder` in 64-byte chunks (a USB
   full-speed packet); frames per second, median of 5 runs. The board sends at
   most 50 frames/s.
-* **Latency** — the real :class:`~whexar.actors.sensors.SensorReader` on real
+* **Latency** — the real :class:`~whexar.actors.sensing.SensorReader` on real
   time reads a pseudo-terminal through pyserial-asyncio while a thread writes
   frames into the other end at 100 Hz. Latency is from the moment the write
   of a frame's last byte returned to the moment its :class:`SensorFrame` was

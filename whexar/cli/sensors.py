@@ -1,6 +1,6 @@
 """``whexar sensors``: watch a sensor board's frames while bringing it up.
 
-The monitor runs the real :class:`~whexar.actors.sensors.SensorReader` on
+The monitor runs the real :class:`~whexar.actors.sensing.SensorReader` on
 real time and prints each decoded frame as it arrives, plus one line for
 every link event (up, down, stale, fresh), sequence gap, rejected frame and
 change of the accelerometer's plausibility.

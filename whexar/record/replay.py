@@ -95,11 +95,19 @@ before ``stop``: it may have been published after it. Where a damaged recording 
 this much before its end is not compared: the cut chunk held part of it."""
 DEVICE_PARAMS: Final = {
     "whexar.actors.bus:BusScheduler": ("port", ("faults", "emulator_fast_sync_read")),
-    "whexar.actors.sensors:SensorReader": ("port", ()),
-    "whexar.actors.imu:ImuReader": ("device", ()),
+    "whexar.actors.sensing:SensorReader": ("port", ()),
+    "whexar.actors.sensing:ImuReader": ("device", ()),
 }
 """Actors that own a device link: the parameter that names the device, and the
 parameters that only an emulator reads (dropped for the replay)."""
+MOVED: Final = {
+    "whexar.actors.leg:LegActor": "whexar.actors.locomotion:LegActor",
+    "whexar.actors.coordinator:Coordinator": "whexar.actors.locomotion:Coordinator",
+    "whexar.actors.sensors:SensorReader": "whexar.actors.sensing:SensorReader",
+    "whexar.actors.imu:ImuReader": "whexar.actors.sensing:ImuReader",
+}
+"""Where the actor classes a recording's wiring may name have moved: a recording made
+before the move replays with the classes at their new homes."""
 FED_ACTORS: Final = frozenset({"whexar.actors.commands:CommandSource"})
 """Actors left out of a replay: their channels are fed from the recording."""
 REPLAY_DEVICE: Final = "replay"
@@ -424,10 +432,10 @@ def _replay_graph(
     aliases: dict[str, str] = {}
     configured = {
         "whexar.actors.bus:BusScheduler": cfg.bus.port,
-        "whexar.actors.sensors:SensorReader": cfg.sensor_board.port,
+        "whexar.actors.sensing:SensorReader": cfg.sensor_board.port,
     }
     for actor in graph.get("actors", []):
-        cls = actor.get("class", "")
+        cls = actor["class"] = MOVED.get(actor.get("class", ""), actor.get("class", ""))
         if cls in FED_ACTORS:
             continue
         params = actor.setdefault("params", {})

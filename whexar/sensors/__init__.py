@@ -13,5 +13,5 @@
 May import: :mod:`whexar.kinematics` (the ADC conversions of eq. 5.5–5.7),
 :mod:`whexar.robot`, :mod:`whexar.errors` and :mod:`whexar.runtime` — never the
 configuration (callers pass values) nor the servo bus. The actors that own
-these links are :mod:`whexar.actors.sensors` and :mod:`whexar.actors.imu`.
+these links are :mod:`whexar.actors.sensing.board` and :mod:`whexar.actors.sensing.imu`.
 """

@@ -228,7 +228,7 @@ class SensorBoardEmulator:
 
 SENSOR_BOARD: Final = DeviceKind[SensorBoardEmulator]("emulated sensor board", "emulator")
 """Emulated boards in :data:`~whexar.runtime.devices.DEVICES`: ``port = "emulator:NAME"`` of
-:class:`~whexar.actors.sensors.SensorReader` opens the one registered as NAME."""
+:class:`~whexar.actors.sensing.SensorReader` opens the one registered as NAME."""
 
 
 class EmulatedBoardLink:

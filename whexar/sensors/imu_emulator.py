@@ -55,7 +55,7 @@ BLOCK_MAX: Final = 32
 
 I2C_BUS: Final = DeviceKind[I2CBus]("fake I²C bus", "fake")
 """Fake I²C buses in :data:`~whexar.runtime.devices.DEVICES`: ``device = "fake:NAME"``
-of :class:`~whexar.actors.imu.ImuReader` opens the one registered as NAME."""
+of :class:`~whexar.actors.sensing.ImuReader` opens the one registered as NAME."""
 
 _WRITABLE: Final = frozenset(
     [*range(0x04, 0x0E), *range(0x10, 0x14), *range(0x1E, 0x25), 0x2E, *range(0x30, 0x38)]

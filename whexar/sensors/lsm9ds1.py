@@ -10,7 +10,7 @@ Theory of operation
 -------------------
 * **Sans-clock.** The driver never sleeps nor reads a clock: each method is a
   short, fixed sequence of bus transactions. Timing (how often to read, when
-  to retry) belongs to the caller, :class:`whexar.actors.imu.ImuReader`.
+  to retry) belongs to the caller, :class:`whexar.actors.sensing.ImuReader`.
 * **Injected bus.** :class:`Lsm9ds1` drives any object with smbus2's three
   byte and block calls (:class:`SMBusLike`): ``smbus2.SMBus`` on the robot,
   :class:`whexar.sensors.imu_emulator.FakeSMBus` in tests and simulation.

@@ -130,7 +130,7 @@ class ReplayLink:
 
 
 REPLAYED_BOARD: Final = DeviceKind[BoardReplay]("replayed sensor-board link", "replay")
-"""Opened by :class:`~whexar.actors.sensors.SensorReader` as ``port = "replay:NAME"``."""
+"""Opened by :class:`~whexar.actors.sensing.SensorReader` as ``port = "replay:NAME"``."""
 
 
 class I2CReplay(_Compared):
@@ -194,4 +194,4 @@ class I2CReplay(_Compared):
 
 
 REPLAYED_I2C: Final = DeviceKind[I2CReplay]("replayed I²C bus", "replay")
-"""Opened by :class:`~whexar.actors.imu.ImuReader` as ``device = "replay:NAME"``."""
+"""Opened by :class:`~whexar.actors.sensing.ImuReader` as ``device = "replay:NAME"``."""

@@ -24,7 +24,7 @@ def imu_graph(
         "actors": [
             {
                 "name": "imu",
-                "class": "whexar.actors.imu:ImuReader",
+                "class": "whexar.actors.sensing:ImuReader",
                 "params": {"device": device, **(params or {})},
                 "outputs": {name: name for name in outputs},
             }

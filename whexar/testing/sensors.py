@@ -30,7 +30,7 @@ def sensor_graph(
     actors: list[dict[str, Any]] = [
         {
             "name": "sensors",
-            "class": "whexar.actors.sensors:SensorReader",
+            "class": "whexar.actors.sensing:SensorReader",
             "params": {"port": port, **(params or {})},
             "outputs": {name: name for name in outputs},
         }

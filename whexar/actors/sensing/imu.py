@@ -67,7 +67,7 @@ from whexar.actors.messages import (
     SensorLinkStale,
     SensorLinkUp,
 )
-from whexar.actors.sensors import gravity_event
+from whexar.actors.sensing.board import gravity_event
 from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.errors import DeviceError, DeviceGoneError, UsageError
 from whexar.runtime.actor import Actor, ActorParams, Output
