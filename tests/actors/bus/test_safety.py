@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from whexar.actors.bus import tick_limits
+from whexar.actors.bus.servos import tick_limits
 from whexar.actors.messages import (
     BusLost,
     BusStats,
