@@ -11,7 +11,9 @@ owns the port, the clock and the channels: it receives, calls the cores,
 does the port jobs they ask for (:mod:`.jobs`) and publishes. A cycle is:
 
 1. take every goal that arrived since the last cycle, in order: the latest
-   per joint wins, within the joint's limits (:class:`GoalPolicy`);
+   per joint wins, within the joint's limits (:class:`GoalPolicy`). Which
+   source overrides which — a reflex over the gait — is the leg's decision,
+   never the bus's: ``JointGoals.reflex`` changes nothing here;
 2. run the reads the plan says are due, and again the servos whose last
    read failed (:class:`CycleReads`), each one Sync Read or Fast Sync Read
    (:class:`ReadMode`) of a contiguous register span;
@@ -302,10 +304,7 @@ class BusScheduler(Actor):
         t = self.now()
         policy, machine = self.policy, self.machine
         if self.goals.connected:
-            messages = self.goals.drain()
-            # Reflex goals last: for a joint both touched this cycle, the reflex wins.
-            ordered = [m for m in messages if not m.reflex] + [m for m in messages if m.reflex]
-            self._effects(policy.take(t, ordered))
+            self._effects(policy.take(t, self.goals.drain()))
         due = self.reading.due(t, machine.out, machine.to_ask())
         requests = [
             Request(r.block.start, r.block.length, tuple(s.id for s in servos)) for r, servos in due
