@@ -24,8 +24,9 @@ Failures, after ROBOTIS's ros2_control hardware interface:
   read, is classified by the servo's Shutdown mask
   (:meth:`HealthMachine.error_status`). A bit in the mask (overload,
   overheating, electrical shock by default) latched and turned torque off:
-  the servo is rebooted. It is silent while it boots (about 0.4 s): it is
-  *booting*, out of the cycle and polled until it answers (then restored) or
+  the servo is rebooted. It is silent while it boots (about 0.4 s,
+  ROBOTIS-GIT/emanual issue #1698; the emulator models it): it is *booting*,
+  out of the cycle and polled until it answers (then restored) or
   ``bus.boot_timeout_s`` passes (then degraded). A degraded servo whose probe
   finds a latched error is rebooted the same way (*recovering*): back, it is
   recovered, never while the error persists. A bit outside the mask (input
