@@ -1,5 +1,5 @@
 """The bus scheduler on the real robot's terms: boots, brownouts, wheels, the watchdog,
-a gentle start-up, exact limits, reflexes first, checked writes, no stalls.
+a gentle start-up, exact limits, one goal per joint, checked writes, no stalls.
 
 Each test runs the real :class:`~whexar.actors.bus.BusScheduler` on virtual time against
 the in-process servo chain and checks what it said and what the servos were left with.
@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from whexar.actors.bus import tick_limits
+from whexar.actors.bus.servos import tick_limits
 from whexar.actors.messages import (
     BusLost,
     BusStats,
@@ -412,19 +412,38 @@ def test_every_goal_the_scheduler_sends_is_inside_the_limits(chain: ServoChain) 
     assert checked >= 30
 
 
-# --------------------------------------------------------------------------- reflexes
+# --------------------------------------------------------------------------- one goal per joint
 
 
 @pytest.mark.parametrize("reflex_first", [True, False])
-def test_a_reflex_goal_wins_over_others_in_the_same_cycle(
+def test_the_latest_goal_per_joint_wins_and_goes_out_once_whatever_its_reflex_mark(
     chain: ServoChain, reflex_first: bool
 ) -> None:
+    """Which goal source overrides which is the leg's decision, not the bus's: the bus
+    takes the goals of a cycle in order, each joint's latest wins, ``reflex`` or not, and
+    only that one is written."""
     femur = servo_id(2, "femur")
     reflex = goals(goal(2, FEMUR, position_rad=0.5), reflex=True)
     plain = goals(goal(2, FEMUR, position_rad=-0.2), goal(3, FEMUR, position_rad=0.1))
+    latest = -0.2 if reflex_first else 0.5
+    written: list[int] = []
+
+    def femur_goals(_chain: ServoChain, _t: float, packets: Sequence[Packet]) -> None:
+        for p in packets:
+            if p.instruction != Instruction.SYNC_WRITE or p.params[0:2] != (116).to_bytes(
+                2, "little"
+            ):
+                continue
+            body = p.params[4:]
+            written.extend(
+                int.from_bytes(body[k + 1 : k + 5], "little", signed=True)
+                for k in range(0, len(body), 5)
+                if body[k] == femur
+            )
 
     async def scenario(h: Harness) -> None:
         await h.wait_for(ServoStates)
+        chain.hooks.append(femur_goals)
         for msg in (reflex, plain) if reflex_first else (plain, reflex):
             await h.feed("goals", msg)
         await h.wait_for(ServoStates)
@@ -432,7 +451,8 @@ def test_a_reflex_goal_wins_over_others_in_the_same_cycle(
         h.stop()
 
     run(graph(), scenario)
-    assert table(chain, femur, "goal_position") == ct.rad_to_ticks(0.5)
+    assert written == [ct.rad_to_ticks(latest)]
+    assert table(chain, femur, "goal_position") == ct.rad_to_ticks(latest)
     assert table(chain, servo_id(3, "femur"), "goal_position") == ct.rad_to_ticks(0.1)
 
 

@@ -45,7 +45,7 @@ from whexar.testing.bus import bus_graph, servo_chain
 from whexar.testing.bus import run_bus as run
 
 CFG = RobotConfig()
-FAULT_PLANS = Path(__file__).resolve().parents[2] / "config" / "faults"
+FAULT_PLANS = Path(__file__).resolve().parents[3] / "config" / "faults"
 TIBIA = JOINT_NAMES.index("tibia")
 TARSUS = JOINT_NAMES.index("tarsus")
 POSITIONING = frozenset(
