@@ -469,7 +469,7 @@ def test_same_inputs_same_messages() -> None:
 
 
 def test_shipped_sensors_graph_runs_both_readers(capsys: pytest.CaptureFixture[str]) -> None:
-    graph = Path(__file__).resolve().parents[2] / "config" / "graphs" / "sensors.toml"
+    graph = Path(__file__).resolve().parents[3] / "config" / "graphs" / "sensors.toml"
     assert main(["run", str(graph), "--virtual", "--duration", "2"]) == 0
     out = capsys.readouterr().out
     assert "SensorLinkUp    link='emulator'" in out
