@@ -17,8 +17,13 @@ def test_readme_examples_run_and_print_what_they_claim() -> None:
     assert blocks, "the README has no Python example"
     for block in blocks:
         out = io.StringIO()
+        namespace: dict[str, object] = {}
         with contextlib.redirect_stdout(out):
-            exec(compile(block, "README.md", "exec"), {})
+            exec(compile(block, "README.md", "exec"), namespace)
+            # A block that defines tests (a user's own, "Testing with faults") runs them.
+            for name, value in namespace.items():
+                if name.startswith("test_") and callable(value):
+                    value()
         claimed = [
             line.split("# -> ", 1)[1].split("(")[0].strip()
             for line in block.splitlines()
