@@ -158,7 +158,7 @@ outputs = {{ state = "state" }}
 
 [[actors]]
 name = "wiggle"
-class = "whexar.testing.bus:GoalWiggle"
+class = "whexar.actors.bus:GoalWiggle"
 params = {{ amplitude_rad = 0.0, wheel_rad_s = 2.0 }}
 inputs = {{ state = "state" }}
 outputs = {{ goals = "goals" }}

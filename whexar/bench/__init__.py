@@ -5,7 +5,8 @@ One module per suite (:mod:`~whexar.bench.kin`, :mod:`~whexar.bench.runtime`,
 ``run(progress) -> Report``. These are the only modules besides the clock
 that read the wall clock.
 
-May import: :mod:`whexar.testing` and everything below it; never the command line.
+May import: :mod:`whexar.campaign` and everything below it; never the test helpers or the
+command line.
 """
 
 from __future__ import annotations

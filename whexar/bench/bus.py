@@ -3,7 +3,7 @@
 What each figure runs (42 servos, 1 Mbps, Return Delay Time 20 µs):
 
 * **hz** — the whole runtime (a :class:`~whexar.actors.bus.BusScheduler` and
-  a :class:`~whexar.testing.bus.GoalWiggle` that changes all 42 goals every
+  a :class:`~whexar.actors.bus.GoalWiggle` that changes all 42 goals every
   cycle) on virtual time against the in-process emulator, through the real
   dynamixel-sdk; cycles per second of runtime time.
 * **limit_hz** — the same cycle costed by the emulator's timing model alone:
@@ -41,10 +41,11 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, TypeVar
 
 from whexar.actors.bus import BusScheduler
+from whexar.actors.graph import GRAPH_DIR, robot_graph
 from whexar.actors.messages import ServoStates
 from whexar.bench import Figure, Progress, Report
 from whexar.bus.control_table import block
-from whexar.bus.emulator.chain import SERVO_CHAIN
+from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.bus.emulator.timing import TimingModel
 from whexar.bus.plan import PRESETS, ReadPlan
 from whexar.bus.protocol import sync_read_bytes, sync_write_bytes
@@ -53,10 +54,9 @@ from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.clock import run as run_loop
 from whexar.runtime.devices import DEVICES
+from whexar.runtime.harness import run_actors
 from whexar.runtime.supervisor import Runtime
 from whexar.runtime.wiring import build_graph
-from whexar.testing import run_actors
-from whexar.testing.bus import bus_graph, servo_chain
 
 PLANS = ("thesis", "full_feedback", "fast_full_feedback", "positioning", "default")
 SHARE_OF_LIMIT = 0.95
@@ -109,7 +109,19 @@ def plan_limit(plan: ReadPlan, cfg: RobotConfig, timing: TimingModel) -> tuple[f
 
 
 def _graph(port: str, plan: str) -> dict[str, Any]:
-    return bus_graph(port, {"plan": plan}, wiggle={}, outputs=("state",))
+    """``config/graphs/bus.toml`` (the scheduler and a goal source that sways every
+    joint) on ``port`` with read plan ``plan``, without its logging sinks."""
+    return robot_graph(
+        path=GRAPH_DIR / "bus.toml",
+        bus=port,
+        params={"bus": {"plan": plan}},
+        leave_out=("health-log", "stats-log"),
+    )
+
+
+def servo_chain(cfg: RobotConfig, **options: Any) -> ServoChain:
+    """The emulated servos of ``cfg`` at its bus's baud rate."""
+    return ServoChain.for_models(cfg.servos(), baudrate=cfg.bus.baudrate, **options)
 
 
 def _rate(states: list[ServoStates], skip_s: float = 0.2) -> float:

@@ -24,13 +24,13 @@ import tty
 from collections.abc import Callable
 
 from whexar.actors.messages import SensorFrame
+from whexar.actors.sensing.monitor import sensor_graph
 from whexar.bench import Figure, Progress, Report
 from whexar.runtime.clock import run as run_loop
 from whexar.runtime.messages import Message
 from whexar.runtime.supervisor import Runtime
 from whexar.runtime.wiring import build_graph
 from whexar.sensors.frame import FrameDecoder, encode_frame
-from whexar.testing.sensors import sensor_graph
 
 FRAMES_TARGET_PER_S = 20_000.0
 """Issue target: the decoder keeps up with 400 boards' worth of frames."""

@@ -173,10 +173,10 @@ def observer(as_json: bool, write: Callable[[str], None]) -> Callable[[str, Mess
 
 
 def _sensors(args: argparse.Namespace) -> int:
+    from whexar.actors.sensing.monitor import sensor_graph
     from whexar.runtime.clock import run as run_loop
     from whexar.runtime.supervisor import Runtime
     from whexar.runtime.wiring import build_graph
-    from whexar.testing.sensors import sensor_graph
 
     params: dict[str, object] = {}
     if args.baud is not None:

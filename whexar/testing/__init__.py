@@ -24,9 +24,8 @@ values of the thesis. The emulators themselves belong to their device
 packages (:mod:`whexar.bus.emulator`, :mod:`whexar.sensors.board_emulator`,
 :mod:`whexar.sensors.imu_emulator`): the actors open them by name.
 
-May import: :mod:`whexar.campaign` and everything below it; never the
-benchmarks or the command line. No module of the package imports it but
-the benchmarks (the import contracts say so).
+May import: everything of whexar. No module of whexar imports it: it is
+for tests, whexar's and its users' (the import contracts say so).
 """
 
 from whexar.runtime.harness import (

@@ -1,71 +1,16 @@
-"""The bus scheduler under test: the robot's emulated servos, a goal source that answers
-every cycle, and its graph.
-
-:class:`GoalWiggle` listens to :class:`~whexar.actors.messages.ServoStates`
-and answers each cycle with goals for every joint: a slow sine around a
-centre angle (positions) and a constant speed (wheels). Every goal changes
-every cycle, so the scheduler writes all 42 goals each time — the load of
-the benchmark plans ("all goals") and a live check that goals reach the
-servos.
-"""
+"""The bus scheduler under test: the robot's emulated servos and a one-scheduler graph,
+with the goal source :class:`~whexar.actors.bus.wiggle.GoalWiggle` that answers every
+cycle."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from pydantic import Field
-
-from whexar.actors.messages import JointGoal, JointGoals, ServoStates
+from whexar.actors.bus.wiggle import GoalWiggle
 from whexar.bus.emulator.chain import ServoChain
 from whexar.config import RobotConfig
-from whexar.robot import JOINT_NAMES, N_LEGS
-from whexar.runtime.actor import Actor, ActorParams, Input, Output
 from whexar.runtime.harness import RunResult, Scenario, run_actors
-
-_WHEEL = JOINT_NAMES.index("wheel")
-
-
-class GoalWiggle(Actor):
-    """Answers every :class:`ServoStates` with a goal for each of the 42 joints."""
-
-    class Params(ActorParams):
-        amplitude_rad: float = Field(0.2, ge=0)
-        frequency_hz: float = Field(0.5, gt=0)
-        center_rad: float = 0.0
-        wheel_rad_s: float = 1.0
-        stop_after_cycles: int | None = Field(None, gt=0)
-        """Ask the runtime to stop after answering this many cycles."""
-
-    params: Params
-    state = Input(ServoStates)
-    goals = Output(JointGoals)
-
-    async def run(self) -> None:
-        p = self.params
-        self.ready()
-        answered = 0
-        w = 2 * math.pi * p.frequency_hz
-        async for states in self.state:
-            t = states.t
-            # A dither larger than the sine's step per cycle makes every goal
-            # differ from the last, so each cycle writes all of them.
-            dither = 0.02 * (answered % 2)
-            angle = p.center_rad + p.amplitude_rad * math.sin(w * t) + dither
-            wheel = p.wheel_rad_s + 2 * dither
-            goals = tuple(
-                JointGoal(t=t, source=self.name, leg=leg, joint=j, velocity_rad_s=wheel)
-                if j == _WHEEL
-                else JointGoal(t=t, source=self.name, leg=leg, joint=j, position_rad=angle)
-                for leg in range(N_LEGS)
-                for j in range(len(JOINT_NAMES))
-            )
-            await self.goals.send(JointGoals(t=states.t, source=self.name, goals=goals))
-            answered += 1
-            if p.stop_after_cycles is not None and answered >= p.stop_after_cycles:
-                self.request_stop(f"answered {answered} cycles")
-                return
 
 
 def run_bus(
@@ -127,7 +72,7 @@ def bus_graph(
         actors.append(
             {
                 "name": "wiggle",
-                "class": "whexar.testing.bus:GoalWiggle",
+                "class": "whexar.actors.bus:GoalWiggle",
                 "params": dict(wiggle),
                 "inputs": {"state": "state"},
                 "outputs": {"goals": "goals"},
@@ -140,3 +85,6 @@ def bus_graph(
     if max_restarts is not None:
         doc["runtime"] = {"restart": {"max_restarts": max_restarts}}
     return doc
+
+
+__all__ = ["BUS_CHANNELS", "GoalWiggle", "bus_graph", "run_bus", "servo_chain"]

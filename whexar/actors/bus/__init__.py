@@ -25,5 +25,6 @@ May import what :mod:`whexar.actors` may: the configuration, the device links
 """
 
 from whexar.actors.bus.scheduler import BusScheduler
+from whexar.actors.bus.wiggle import GoalWiggle
 
-__all__ = ["BusScheduler"]
+__all__ = ["BusScheduler", "GoalWiggle"]
