@@ -213,7 +213,7 @@ class PlannerCore:
         servos holding a position error, and speeds computed for the commanded feet then
         disagree, on a turn, with the wheels' real distances from the centre of rotation:
         the wheels scrub against each other through the legs (thesis 6.5.2: "tension on
-        the inner legs"; docs/sim.md has the currents measured both ways)."""
+        the inner legs"; docs/architecture.md has the currents measured both ways)."""
         return [
             m if m is not None else f if f is not None else n
             for m, f, n in zip(self.measured_feet, self.feet, self.neutral_points, strict=True)
