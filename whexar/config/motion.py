@@ -1,0 +1,262 @@
+"""How the robot moves: the gait selector's thresholds (Table 5.9), the stance presets
+(6.3, 6.4) and locomotion's settings."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Literal
+
+from pydantic import (
+    Field,
+)
+
+from whexar.errors import Problem
+from whexar.kinematics.body import Stance
+from whexar.kinematics.gait import GAIT_RANKING
+from whexar.runtime.schema import (
+    NonNegative,
+    Positive,
+    Section,
+)
+
+# --------------------------------------------------------------------------- gait selection
+
+
+class GaitThresholds(Section):
+    """Limits of one locomotion mode; beyond any of them a more stable mode is chosen.
+
+    An absent ``max_obstacles`` or ``max_bumps`` means no limit (Table 5.9 "> 0",
+    "> 10": walking gaits accept any count).
+    """
+
+    max_step_height_mm: NonNegative
+    max_tilt_deg: float = Field(gt=0, le=90, allow_inf_nan=False)
+    """Body tilt (roll or pitch) tolerated, symmetric about level."""
+    max_obstacles: int | None = Field(default=None, ge=0)
+    max_bumps: int | None = Field(default=None, ge=0)
+    """IMU bumps counted by the terrain controller (4.2.3)."""
+    max_lost_supports: int = Field(ge=0)
+    """Disappeared leg supports within the window (4.2.3, 6.7.5)."""
+
+
+class GaitSelectorSpec(Section):
+    """Gait-selector thresholds: Table 5.9, wheel tilt raised from 7° to 20° (6.7.5)."""
+
+    lost_support_window_cycles: Positive = 1.0
+    """Disappeared supports are counted over a floating window of one gait cycle (6.7.5)."""
+    wheels: GaitThresholds = GaitThresholds(
+        max_step_height_mm=0, max_tilt_deg=20, max_obstacles=0, max_bumps=10, max_lost_supports=3
+    )
+    tripod: GaitThresholds = GaitThresholds(
+        max_step_height_mm=100, max_tilt_deg=20, max_lost_supports=3
+    )
+    tetrapod: GaitThresholds = GaitThresholds(
+        max_step_height_mm=120, max_tilt_deg=25, max_lost_supports=4
+    )
+    ripple: GaitThresholds = GaitThresholds(
+        max_step_height_mm=220, max_tilt_deg=30, max_lost_supports=5
+    )
+    wave: GaitThresholds = GaitThresholds(
+        max_step_height_mm=350, max_tilt_deg=30, max_lost_supports=5
+    )
+
+    def ranked(self) -> tuple[tuple[str, GaitThresholds], ...]:
+        """(mode, thresholds) from wheels to wave."""
+        return tuple((name, getattr(self, name)) for name in GAIT_RANKING)
+
+    def problems(self, at: str) -> list[Problem]:
+        # A more stable mode must tolerate at least what a less stable one does,
+        # or the selector could escalate into a mode that rejects the terrain.
+        found: list[Problem] = []
+        keys = (
+            "max_step_height_mm",
+            "max_tilt_deg",
+            "max_obstacles",
+            "max_bumps",
+            "max_lost_supports",
+        )
+        ranked = self.ranked()
+        for key in keys:
+            for (lo_name, lo), (hi_name, hi) in itertools.pairwise(ranked):
+                a, b = getattr(lo, key), getattr(hi, key)
+                a_val = math.inf if a is None else a
+                b_val = math.inf if b is None else b
+                if b_val < a_val:
+                    shown = "no limit" if a is None else f"{a:g}"
+                    found.append(
+                        Problem(
+                            f"{at}.{hi_name}.{key}",
+                            b,
+                            f"at least {lo_name}'s {shown}: thresholds may not fall along "
+                            f"the ranking {' < '.join(GAIT_RANKING)}",
+                        )
+                    )
+        return found
+
+
+# --------------------------------------------------------------------------- stances
+
+
+class StanceSpec(Section):
+    """A standing posture, the same for all legs up to the front/rear yaw (6.3, 6.4).
+
+    ``reach_mm`` is the horizontal distance from the coxa joint to the wheel's
+    contact point, ``height_mm`` the height of the coxa joints above the ground,
+    ``front_rear_yaw_deg`` how far front legs turn forward and rear legs
+    backward (6.4: 25° stopped the tripod gait from tipping backwards).
+    """
+
+    reach_mm: Positive
+    height_mm: Positive
+    front_rear_yaw_deg: float = Field(default=0.0, ge=-90, le=90, allow_inf_nan=False)
+    description: str = ""
+
+    def to_stance(self) -> Stance:
+        """This preset in SI, as the kinematics takes it."""
+        return Stance(
+            reach=self.reach_mm / 1000,
+            height=self.height_mm / 1000,
+            front_rear_yaw=math.radians(self.front_rear_yaw_deg),
+        )
+
+
+def default_stances() -> dict[str, StanceSpec]:
+    # Fig. 6.1 shows the stances without joint values; reach and height are
+    # chosen to match its captions and Table 6.5 (row 1: tarsus at x = 190,
+    # y = 120 mm, i.e. contact 120 + 170 mm below the coxa).
+    return {
+        "default": StanceSpec(
+            reach_mm=190,
+            height_mm=290,
+            front_rear_yaw_deg=25,
+            description="walking stance of 6.4: Table 6.5 row 1, front/rear legs turned 25 deg",
+        ),
+        "basic": StanceSpec(
+            reach_mm=190,
+            height_mm=290,
+            description="Table 6.5 row 1 on every leg (Fig. 6.1 b)",
+        ),
+        "high": StanceSpec(
+            reach_mm=160,
+            height_mm=380,
+            front_rear_yaw_deg=25,
+            description="highest stance, for stepping over high obstacles (Fig. 6.1 a)",
+        ),
+        "low": StanceSpec(
+            reach_mm=240,
+            height_mm=200,
+            front_rear_yaw_deg=25,
+            description="20 cm stance for crawling under low obstacles (Fig. 6.1 c)",
+        ),
+        "narrow": StanceSpec(
+            reach_mm=140,
+            height_mm=290,
+            description="shortest stance (Fig. 6.1 e)",
+        ),
+    }
+
+
+# --------------------------------------------------------------------------- locomotion
+
+Trajectory = Literal["parabola", "half_sine", "hopf", "van_der_pol", "rayleigh", "stick_slip"]
+"""Swing shapes: Diosdado 2014, 3.3–3.4, and the CPG orbits of Grzelczyk et al., 8.4."""
+ContactSource = Literal["auto", "fsr", "current", "none"]
+
+
+class LocomotionSpec(Section):
+    """The coordinator's and the leg actors' settings (4.2.5, 4.2.6, 5.4, 6.3–6.6).
+
+    Speeds follow from steps: a gait covers one step length per stance, so
+    v = L / (β·T) for step length L, duty factor β and cycle time T. The
+    coordinator keeps every swing at least ``min_swing_s`` long, T at most
+    ``max_cycle_s`` and L within ``max_step_length_mm``; a faster command is
+    clamped with an event.
+    """
+
+    stance: str = "default"
+    """Stance at start (a ``[stances]`` preset); the walking stance of 6.4."""
+    ride_stance: str = "basic"
+    """Stance for riding: every leg square to the body, so the wheels sit symmetric."""
+    gait: Literal["tripod", "tetrapod", "ripple", "wave"] = "tripod"
+    hybrid_gait: Literal["tripod", "tetrapod", "ripple", "wave"] = "ripple"
+    """The gait stepping while the wheels drive; ripple for its stability (6.6)."""
+    trajectory: Trajectory = "parabola"
+    min_swing_s: Positive = 0.4
+    """Shortest swing: the tripod gait's cycle then lasts 0.8 s, half the 1.6 s of 6.8.1."""
+    max_cycle_s: Positive = 6.0
+    """Longest gait cycle; slower commands take shorter steps instead."""
+    step_length_mm: Positive = 100.0
+    """Preferred step. The cycle follows the speed, T = L / (β·v): the tripod gait at
+    0.125 m/s steps every 1.6 s, as in 6.8.1 (0.07–0.12 m/s, 1.6 s)."""
+    max_step_length_mm: Positive = 140.0
+    """Longest step the workspace of every stance preset allows with margin."""
+    step_height_mm: Positive = 60.0
+    max_step_height_mm: Positive = 120.0
+    """Table 5.9: tetrapod steps over 120 mm; the swing apex may not exceed it."""
+    max_accel_m_s2: Positive = 0.25
+    """Body acceleration limit while walking or riding; velocity changes ramp."""
+    max_yaw_accel_deg_s2: Positive = 60.0
+    ride_max_speed_m_s: Positive = 0.2
+    """Top riding speed measured in 6.5.1."""
+    min_turn_radius_mm: Positive = 400.0
+    """A circle about a point inside the body (half its length, 300 mm) is refused."""
+    hybrid_wheel_share: float = Field(default=0.5, gt=0, lt=1)
+    """Share of the hybrid gait's speed the wheels make; the legs step the rest (6.6)."""
+    min_stability_margin_mm: Positive = 30.0
+    """No leg lifts when the static margin of the remaining feet would fall below this."""
+    trochanter_follows_pitch: bool = True
+    """Turn the trochanters with the body pitch (eq. 4.18), commanded and measured."""
+    tilt_filter_s: Positive = 1.0
+    """Time constant of the low-pass on the measured pitch the trochanters follow: a slope
+    is steady, the accelerations of walking are not."""
+    transition_s: Positive = 1.0
+    """Duration of a stance change, a leg re-placement, a body pose change."""
+    stand_up_s: Positive = 2.0
+    sit_height_mm: Positive = 80.0
+    """Coxa joints above the ground when seated: the 60 mm body resting on the ground."""
+    sit_down_s: Positive = 1.5
+    flip_s: Positive = 2.0
+    """Time to turn the legs 180° about their trochanters (6.8.1)."""
+    align_tolerance_deg: Positive = 3.0
+    """Direction servos within this of their heading before the wheels turn."""
+    align_timeout_s: Positive = 1.5
+    wheel_stop_speed_m_s: Positive = 0.005
+    """A wheel slower than this counts as stopped before its leg lifts."""
+    contact: ContactSource = "auto"
+    """Foot contact: the force sensor when frames arrive (auto), always it, the femur
+    current (6.7.3), or none (no adaptive swing)."""
+    contact_current_a: Positive = 0.8
+    """|femur current| above this means the foot carries load (6.7.3)."""
+    reflex_hold_s: Positive = 0.3
+    """A reflex goal keeps its joint this long after it was sent."""
+    reflex_blend_s: Positive = 0.3
+    """Then the leg blends back from the reflex's pose to its own in this time."""
+
+    def problems(self, at: str) -> list[Problem]:
+        found: list[Problem] = []
+        if self.min_swing_s >= self.max_cycle_s:
+            found.append(
+                Problem(
+                    f"{at}.min_swing_s",
+                    self.min_swing_s,
+                    f"below max_cycle_s ({self.max_cycle_s:g})",
+                )
+            )
+        if self.step_length_mm > self.max_step_length_mm:
+            found.append(
+                Problem(
+                    f"{at}.step_length_mm",
+                    self.step_length_mm,
+                    f"at most max_step_length_mm ({self.max_step_length_mm:g})",
+                )
+            )
+        if self.step_height_mm > self.max_step_height_mm:
+            found.append(
+                Problem(
+                    f"{at}.step_height_mm",
+                    self.step_height_mm,
+                    f"at most max_step_height_mm ({self.max_step_height_mm:g})",
+                )
+            )
+        return found
