@@ -23,6 +23,9 @@ from whexar.runtime.devices import DEVICES
 from whexar.testing.bus import servo_chain
 from whexar.testing.walk import command, run_walk, walk_graph
 
+# Whole walks on the emulators, a second or more each.
+pytestmark = pytest.mark.slow
+
 BLOCK_M = 0.03
 LOADED_A = 2.0
 

@@ -28,6 +28,9 @@ from whexar.runtime.messages import ActorFailed
 from whexar.testing import RunResult
 from whexar.testing.walk import command, run_walk, walk_graph
 
+# Whole walks on the emulators, a second or more each.
+pytestmark = pytest.mark.slow
+
 FULL_FEEDBACK = {"plan": "full_feedback"}
 
 

@@ -65,6 +65,10 @@ from whexar.runtime.messages import ActorFailed, Event
 from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.walk import command, run_walk, walk_graph
 
+# Whole walks on the emulators, seconds each: the policy itself is tested in milliseconds
+# by test_planner.py and test_leg_controller.py.
+pytestmark = pytest.mark.slow
+
 CFG = RobotConfig()
 LOCO = CFG.locomotion
 GEOMETRY = CFG.leg_geometry()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from whexar.actors.messages import (
     CommandClamped,
     GoalClamped,
@@ -12,6 +14,9 @@ from whexar.actors.messages import (
 )
 from whexar.runtime.messages import ActorFailed
 from whexar.testing.walk import command, run_walk
+
+# Whole rides on the emulators, a second or more each.
+pytestmark = pytest.mark.slow
 
 
 def test_riding_at_the_thesis_top_speed_is_limited_by_the_wheel_servo() -> None:

@@ -27,6 +27,9 @@ from whexar.testing import Harness, RunResult, run_actors
 from whexar.testing.bus import servo_chain
 from whexar.testing.walk import command, run_walk, walk_graph
 
+# Whole runs on the emulators, a second or more each.
+pytestmark = pytest.mark.slow
+
 CFG = RobotConfig()
 GEOMETRY = CFG.leg_geometry()
 SIT_M = CFG.locomotion.sit_height_mm / 1000

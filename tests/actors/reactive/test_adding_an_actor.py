@@ -71,6 +71,7 @@ def walk(graph: dict[str, object]) -> RunResult:
     return run_actors(graph, duration=7.0, scenario=scenario, feeds=["commands"])
 
 
+@pytest.mark.slow
 def test_the_robot_runs_with_the_new_actor_and_its_legs_reach_down(
     my_reflex: object, tmp_path: Path
 ) -> None:
@@ -97,6 +98,7 @@ def test_the_robot_runs_with_the_new_actor_and_its_legs_reach_down(
     assert not any(m.reflex for m in r.messages("goals", of=JointGoals))
 
 
+@pytest.mark.slow
 def test_without_the_new_actor_no_leg_reaches_down() -> None:
     r = walk(robot_graph(feeds=["commands"]))
     assert r.messages("swings", of=SwingEnded)
