@@ -317,7 +317,7 @@ def test_a_campaign_that_keeps_recordings_writes_one_per_run(tmp_path: Path) -> 
 def test_the_docs_list_every_metric() -> None:
     from whexar.campaign.results import metrics_table
 
-    docs = (Path(__file__).resolve().parents[1] / "docs" / "campaigns.md").read_text()
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "campaigns.md").read_text()
     assert metrics_table() in docs, "docs/campaigns.md: paste results.metrics_table() again"
 
 
@@ -325,7 +325,7 @@ def test_the_readme_and_docs_examples_load() -> None:
     import re
     import tomllib
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     for doc in ("README.md", "docs/campaigns.md"):
         text = (root / doc).read_text()
         blocks = [b for b in re.findall(r"```toml\n(.*?)```", text, re.S) if "scenario =" in b]

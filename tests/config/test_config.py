@@ -14,7 +14,7 @@ from whexar.config import BusSpec, RobotConfig, config_schema, load_config, pars
 from whexar.errors import ConfigError
 from whexar.sensors.usart import BOARD_BAUDRATES, usart_setting
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "whexar.toml"
+CONFIG = Path(__file__).resolve().parents[2] / "config" / "whexar.toml"
 
 
 def _data() -> dict[str, Any]:
