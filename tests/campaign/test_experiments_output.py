@@ -4,7 +4,9 @@
 set mostly failing — falls, slides, turns, failed and missing runs; one mostly
 passing; one where every slope passes), so every branch of the notes is taken.
 The other files are what ``whexar sim --experiments`` prints for them (the
-table, ``--json``) and the report it writes.
+table, ``--json``) and the report it writes. They were written before the
+thesis's figures moved from code into their data file, and only the report's
+sentence naming where the code and the data live has changed since.
 
 When an output is meant to change, rewrite them and review the diff:
 ``python tests/campaign/test_experiments_output.py``.

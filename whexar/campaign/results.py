@@ -208,7 +208,8 @@ def metrics_table() -> str:
     (``docs/campaigns.md`` carries it; a test keeps the two the same)."""
     lines = ["| metric | unit | module | what |", "|---|---|---|---|"]
     for m in registry().values():
-        module = m.fn.__module__.rsplit(".", 1)[-1]
+        # The campaign module or package that defines it: metrics, experiments, failures.
+        module = m.fn.__module__.removeprefix("whexar.campaign.").split(".", 1)[0]
         lines.append(f"| `{m.name}` | {m.unit or '–'} | {module} | {m.description} |")
     return "\n".join(lines)
 

@@ -1,0 +1,297 @@
+"""The metrics of the thesis's experiments (Žák 2023, 6.4–6.8), registered by name.
+
+Theory of operation
+-------------------
+Each function here is a campaign metric (:func:`~whexar.campaign.metrics.metric`)
+that ``config/campaigns/experiments.toml`` keeps: the total servo current of
+eq. 6.1–6.3 over all 42 servos, the speed up the plane, the cost of transport as
+the thesis computes it (eq. 6.4–6.5), the gait period, the time to cover the 2 m
+track, the direction of travel, the spin rate and the circle's return error. Each
+reads only the run (its samples and its message log), so the campaign's rows stay
+deterministic.
+
+*The total current.* The thesis sums each servo's mean |Present Current|
+(eq. 6.1) over the servos of a leg (eq. 6.2) and over the legs (eq. 6.3).
+The simulation's default read plan reads the current of only 24 servos
+(coxa, femur, tibia, tarsus): the generic ``mean_current_a`` sums those. The
+world knows every motor's current (its Present Current is τ/kₜ, the same
+number): the sampled electric power Σ V·|I| over the supply voltage is that
+sum over all 42 servos, so :func:`total_current_a` is the one compared with
+the thesis.
+
+The constants below define what a metric measures (a change changes the rows,
+and so every run's key); the thesis's figures they are set beside are data
+(:mod:`whexar.campaign.experiments.reference`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Final
+
+from whexar.actors.messages import LegState
+from whexar.campaign.metrics import G, Value, Window, mean_power, metric, servo_currents
+from whexar.robot import JOINT_NAMES
+from whexar.sim.run import FALLEN_TILT_RAD
+
+if TYPE_CHECKING:
+    from whexar.sim.run import Sample, SimResult
+
+TRACK_M: Final = 2.0
+"""The track of 6.5.1 and 6.5.2: 2 m."""
+CIRCLE_LAPS: Final = 2
+"""The circle of 6.5.2 was driven twice round."""
+MOVING_M: Final = 0.01
+"""The track's clock starts when the body has moved this far from where it stood."""
+TOP_SPEED_SPAN_S: Final = 1.0
+"""Top speed: the largest displacement over this span, over the span."""
+
+
+def _supply_voltage(result: SimResult) -> float:
+    return float(result.world.cfg.robot.supply_voltage_v)
+
+
+@metric(
+    "total_current_a",
+    "A",
+    "total servo current, thesis eq. 6.1–6.3, over all 42 servos: the motors' mean Σ|I| "
+    "(electric power Σ V·|I| over the supply voltage)",
+)
+def total_current_a(result: SimResult, window: Window) -> Value:
+    """Σ over every servo of its mean |current| in the window (eq. 6.1–6.3), A."""
+    power = mean_power(window.samples(result))
+    return None if power is None else power / _supply_voltage(result)
+
+
+def _unwrapped_yaw(samples: Sequence[Sample]) -> list[float]:
+    out: list[float] = []
+    for s in samples:
+        if not out:
+            out.append(s.yaw)
+            continue
+        step = (s.yaw - out[-1] + math.pi) % (2 * math.pi) - math.pi
+        out.append(out[-1] + step)
+    return out
+
+
+def _along_plane(a: Sample, b: Sample) -> float:
+    """Signed distance from ``a`` to ``b`` along ``a``'s heading, up the plane: the
+    horizontal displacement along the heading, lifted onto the plane by the height gained."""
+    forward = (b.x - a.x) * math.cos(a.yaw) + (b.y - a.y) * math.sin(a.yaw)
+    return math.copysign(math.hypot(forward, b.z - a.z), forward)
+
+
+@metric(
+    "uphill_speed_mps",
+    "m/s",
+    "speed along the starting heading, up the plane (negative: sliding back), over the window",
+)
+def uphill_speed_mps(result: SimResult, window: Window) -> Value:
+    """The body's mean velocity along its starting heading, measured on the plane, m/s."""
+    s = window.samples(result)
+    if len(s) < 2 or s[-1].t <= s[0].t:
+        return None
+    return _along_plane(s[0], s[-1]) / (s[-1].t - s[0].t)
+
+
+@metric(
+    "thesis_cost_of_transport",
+    "",
+    "cost of transport as in thesis eq. 6.4–6.5: U·I / (m g v), I the total servo current, "
+    "v the speed up the plane; none below 0.01 m/s",
+)
+def thesis_cost_of_transport(result: SimResult, window: Window) -> Value:
+    """e = U·I / (m·g·v) (eq. 6.4, P = U·I eq. 6.5), as Table 6.7 computes it."""
+    current, speed = total_current_a(result, window), uphill_speed_mps(result, window)
+    if not isinstance(current, float) or not isinstance(speed, float) or speed < 0.01:
+        return None
+    return _supply_voltage(result) * current / (result.mass_kg * G * speed)
+
+
+@metric("max_heading_change_deg", "°", "largest |yaw − yaw at the window's start| in the window")
+def max_heading_change_deg(result: SimResult, window: Window) -> Value:
+    """How far the body turned away from its first heading in the window, degrees."""
+    yaw = _unwrapped_yaw(window.samples(result))
+    return math.degrees(max(abs(y - yaw[0]) for y in yaw)) if yaw else None
+
+
+@metric(
+    "gait_period_s",
+    "s",
+    "gait cycle time: mean time between a leg's successive lift-offs (LegState swings)",
+)
+def gait_period_s(result: SimResult, window: Window) -> Value:
+    """The mean, over the legs, of the time from one swing's start to the next, s."""
+    starts: dict[int, list[float]] = {}
+    before: dict[int, str] = {}
+    for m in result.run.log.messages(of=LegState):
+        if m.phase == "swing" and before.get(m.leg) != "swing" and window.contains(m.t):
+            starts.setdefault(m.leg, []).append(m.t)
+        before[m.leg] = m.phase
+    periods = [(t[-1] - t[0]) / (len(t) - 1) for t in starts.values() if len(t) > 1]
+    return sum(periods) / len(periods) if periods else None
+
+
+def _moving_from(samples: Sequence[Sample]) -> int | None:
+    """Index of the last sample before the body left where it stood at the window's start."""
+    first = samples[0]
+    for k, s in enumerate(samples):
+        if math.hypot(s.x - first.x, s.y - first.y) > MOVING_M:
+            return max(0, k - 1)
+    return None
+
+
+MOVING_ACTIVITIES: Final = ("riding", "walking", "hybrid")
+"""The coordinator's activities that move the body (:class:`LocomotionState`)."""
+
+
+@metric(
+    "time_to_2m_s",
+    "s",
+    "time from the coordinator starting to ride or walk in the window (else the body's first "
+    "movement) until the body is 2 m from where it was then (6.5.1: the 2 m track)",
+)
+def time_to_2m_s(result: SimResult, window: Window) -> Value:
+    """Seconds the robot takes to cover the 2 m track from a standstill. The clock starts
+    when the coordinator starts to move the body, not at the command: the walk → ride
+    change before it (legs squared, wheels aligned) shifts the body by a few cm."""
+    s = window.samples(result)
+    if not s:
+        return None
+    start = next(
+        (k for k, x in enumerate(s) if x.activity.split(" ")[0] in MOVING_ACTIVITIES), None
+    )
+    if start is None:
+        start = _moving_from(s)
+    if start is None:
+        return None
+    a = s[start]
+    for b in s[start:]:
+        if math.hypot(b.x - a.x, b.y - a.y) >= TRACK_M:
+            return b.t - a.t
+    return None
+
+
+@metric("top_speed_mps", "m/s", "largest displacement over 1 s in the window, per second")
+def top_speed_mps(result: SimResult, window: Window) -> Value:
+    """The highest speed over any :data:`TOP_SPEED_SPAN_S` of the window, m/s."""
+    s = window.samples(result)
+    best: float | None = None
+    j = 0
+    for i, a in enumerate(s):
+        j = max(j, i)
+        while j < len(s) and s[j].t - a.t < TOP_SPEED_SPAN_S - 1e-9:
+            j += 1
+        if j == len(s):
+            break
+        b = s[j]
+        v = math.hypot(b.x - a.x, b.y - a.y) / (b.t - a.t)
+        best = v if best is None else max(best, v)
+    return best
+
+
+@metric(
+    "travel_direction_deg",
+    "°",
+    "direction of the window's displacement relative to the starting heading (+: left)",
+)
+def travel_direction_deg(result: SimResult, window: Window) -> Value:
+    """Where the body went, relative to where it faced at the window's start, degrees."""
+    s = window.samples(result)
+    if len(s) < 2:
+        return None
+    dx, dy = s[-1].x - s[0].x, s[-1].y - s[0].y
+    if math.hypot(dx, dy) < MOVING_M:
+        return None
+    heading = math.atan2(dy, dx) - s[0].yaw
+    return math.degrees((heading + math.pi) % (2 * math.pi) - math.pi)
+
+
+@metric("spin_rpm", "rpm", "mean turning rate of the body over the window, revolutions/min")
+def spin_rpm(result: SimResult, window: Window) -> Value:
+    """|Δyaw| / Δt over the window, in revolutions per minute (6.5.2: about 4 rpm)."""
+    s = window.samples(result)
+    if len(s) < 2 or s[-1].t <= s[0].t:
+        return None
+    yaw = _unwrapped_yaw(s)
+    return abs(yaw[-1] - yaw[0]) / (s[-1].t - s[0].t) * 60 / (2 * math.pi)
+
+
+@metric(
+    "circle_return_m",
+    "m",
+    "distance from the window's first position when the heading has turned two full laps "
+    "(6.5.2: 1.5 cm)",
+)
+def circle_return_m(result: SimResult, window: Window) -> Value:
+    """How far from its starting point the robot is after :data:`CIRCLE_LAPS` laps, m."""
+    s = window.samples(result)
+    yaw = _unwrapped_yaw(s)
+    goal = CIRCLE_LAPS * 2 * math.pi
+    for k in range(1, len(s)):
+        turned, before = abs(yaw[k] - yaw[0]), abs(yaw[k - 1] - yaw[0])
+        if turned >= goal > before:
+            f = (goal - before) / (turned - before)
+            x = s[k - 1].x + f * (s[k].x - s[k - 1].x)
+            y = s[k - 1].y + f * (s[k].y - s[k - 1].y)
+            return math.hypot(x - s[0].x, y - s[0].y)
+    return None
+
+
+def _first_fall(result: SimResult) -> Sample | None:
+    for s in result.samples:
+        if s.tilt > FALLEN_TILT_RAD:
+            return s
+    return None
+
+
+@metric("fell_at_s", "s", "when the body first tilted past 60°, in the whole run (none: never)")
+def fell_at_s(result: SimResult, window: Window) -> Value:
+    """The time of the first fall, whether or not inside the window (a fall before the
+    window explains the window's figures)."""
+    fall = _first_fall(result)
+    return None if fall is None else fall.t
+
+
+@metric("fell_while", "", "what the coordinator was doing when the body first tilted past 60°")
+def fell_while(result: SimResult, window: Window) -> Value:
+    """The coordinator's activity at the first fall (``walking walk/tripod``…), if any."""
+    fall = _first_fall(result)
+    return None if fall is None else fall.activity
+
+
+def _joint_current(joint: int) -> Callable[[SimResult, Window], Value]:
+    def fn(result: SimResult, window: Window) -> Value:
+        currents = servo_currents(result, window, joint)
+        return sum(currents.values()) if currents else None
+
+    return fn
+
+
+PER_JOINT: Final = ("coxa", "femur", "tibia", "tarsus")
+"""The joints whose current the sim's read plan reports (the others are not read)."""
+for _name in PER_JOINT:
+    metric(
+        f"{_name}_current_a",
+        "A",
+        f"current of the six {_name} servos (eq. 6.1, summed), as the bus reads it",
+    )(_joint_current(JOINT_NAMES.index(_name)))
+
+__all__ = [
+    "CIRCLE_LAPS",
+    "PER_JOINT",
+    "TRACK_M",
+    "circle_return_m",
+    "fell_at_s",
+    "fell_while",
+    "gait_period_s",
+    "max_heading_change_deg",
+    "spin_rpm",
+    "thesis_cost_of_transport",
+    "time_to_2m_s",
+    "top_speed_mps",
+    "total_current_a",
+    "travel_direction_deg",
+    "uphill_speed_mps",
+]
