@@ -53,13 +53,13 @@ Why ``asyncio.Queue`` buffers and not anyio memory object streams
 -----------------------------------------------------------------
 The runtime is anyio on the asyncio backend (see :mod:`whexar.runtime.clock`),
 and cancellation reaches a task waiting on an ``asyncio.Queue`` like any
-other await. The buffer is what a hop costs, and it was measured here:
-a token passed around a ring of ten tasks costs about 28 µs per hop through
-anyio memory object streams (every ``receive`` checkpoints and waits on an
-anyio ``Event``), 20 µs when the fast path skips the checkpoint, and 5 µs
-through ``asyncio.Queue``. The target is 20 µs per hop through the whole
-actor machinery, so the buffers are asyncio queues; the interface keeps
-anyio's vocabulary (``send``/``receive``/``*_nowait``, :class:`anyio.WouldBlock`).
+other await. The buffer is most of what a hop costs: anyio memory object
+streams checkpoint on every ``receive`` and wait on an anyio ``Event``, and
+a hop through them alone took more than the runtime's whole budget per hop
+(20 µs through the actor machinery, ``whexar bench runtime``); through
+``asyncio.Queue`` a fraction of it (docs/runtime.md has the figures). So the
+buffers are asyncio queues; the interface keeps anyio's vocabulary
+(``send``/``receive``/``*_nowait``, :class:`anyio.WouldBlock`).
 """
 
 from __future__ import annotations
@@ -115,18 +115,18 @@ TURN_OPS = 256
 """Port operations an actor may make without waiting before it yields once (fairness).
 
 The default ``queue`` capacity, so draining a full default buffer never
-yields; at about a microsecond an operation, a flooding actor holds the loop
-for a fraction of a millisecond per turn. With 64 the runtime bench's
-message rate fell by a fifth (the sink yielded four times per full buffer).
+yields, and a flooding actor holds the loop for a fraction of a millisecond
+per turn. A smaller budget makes a sink yield several times per full buffer,
+which the runtime bench's message rate shows (docs/runtime.md).
 """
 
 
 STOP_CHECK_WAITS = 16
 """A port checks for a pending cancellation before one in this many real waits.
 
-anyio's ``checkpoint_if_cancelled`` costs about 1.5 µs; before every wait it
-added a third to the runtime bench's hop (6 → 8 µs). Every 16th wait costs
-a tenth of a microsecond, and a stop still gets through within 16 waits.
+anyio's ``checkpoint_if_cancelled`` before every wait made the runtime
+bench's hop markedly slower (docs/runtime.md); before one wait in 16 its cost
+is lost in the noise, and a stop still gets through within 16 waits.
 """
 
 
