@@ -15,18 +15,19 @@ recorded first), so that both see the machine in the same state:
   instructions (**instructions_pct**, :func:`count_instructions`): the course run
   under Valgrind for :data:`BASE_SECONDS` and for :data:`BENCH_SECONDS`, without
   and with a recording; what the longer runs add over the shorter ones is what a
-  simulated second costs, start-ups left out. The counts repeat within 0.1 %
-  without a recording and 1 % with one (how the runtime packs and sends follows the
-  recording process's pace);
-  they do not see the caches. Without Valgrind, the CPU figure below instead.
+  simulated second costs, start-ups left out. The counts repeat closely, closer
+  without a recording than with one (how the runtime packs and sends follows the
+  recording process's pace; docs/recording.md says how closely); they do not see
+  the caches. Without Valgrind, the CPU figure below instead.
   The recording is ``whexar sim``'s, written by a process of its own
   (:class:`~whexar.record.sidecar.RecorderProcess`, not counted): the runtime hands
   over, taps the device links and packs;
 * **overhead_cpu_pct** — the process's CPU time with a recording over that without,
   less one, the median over the pairs (each pair run back to back). On a shared VM
-  a run's CPU time for the same work moves by ±15 %, and a recording process busy on
-  the other vCPU slows this one as any busy neighbour does: the figure moved from 1 %
-  to 20 % between runs of this bench, so it is reported, not judged;
+  a run's CPU time for the same work moves by more than the target, and a recording
+  process busy on the other vCPU slows this one as any busy neighbour does: the
+  figure moves between runs of this bench by several times the target
+  (docs/recording.md), so it is reported, not judged;
 * **direct_pct** — the same share counted directly, free of the machine's drift:
   in a run of its own, the packing and sending between cycles (timed) and the
   hand-overs (counted, at the unit cost measured after it); what it leaves out is
@@ -41,8 +42,8 @@ recorded first), so that both see the machine in the same state:
   longest a cycle can wait for it. Writes during which Python's garbage
   collector ran are counted apart (**max_cycle_delay_with_gc_ms**,
   **writes_with_gc**): a collection walks the whole process (the simulation's
-  message log too) and stalls the loop wherever it falls, 75 ms at worst here
-  after 20 s of the course;
+  message log too) and stalls the loop wherever it falls, for tens of
+  milliseconds after 20 s of the course (docs/recording.md);
 * **bytes_per_s** — the file's size per simulated second;
 * **replay_realtime_factor** — a 60 s log replayed with ``--fast``
   (:mod:`whexar.bench.replay`; target ≥ 50×).
@@ -98,8 +99,8 @@ def _probe(seconds: float, record: bool) -> None:
 
 def instructions(command: list[str]) -> int:
     """The instructions ``command`` executes, counted by Valgrind (cachegrind, no cache
-    simulation): deterministic code counts the same within 0.1 % from run to run,
-    whatever else the machine does.
+    simulation): deterministic code counts nearly the same from run to run, whatever
+    else the machine does.
     Child processes run natively and are not counted."""
     done = subprocess.run(
         [*_VALGRIND, *command],
@@ -125,7 +126,7 @@ def count_instructions(
     of the course between ``base_s`` and ``seconds``, against those without it
     (``None`` without Valgrind).
 
-    Four runs under Valgrind, two at a time (each about 30× slower than natively): the
+    Four runs under Valgrind, two at a time (each far slower than natively): the
     course for ``base_s`` and for ``seconds``, without and with a recording. The
     difference of the two lengths leaves what both share (interpreter start-up, the
     model, the recording process's start) out: what remains is what each simulated

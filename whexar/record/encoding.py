@@ -30,13 +30,11 @@ and one item type per array, and rejects ``null``, type lists, ``anyOf`` and ``$
 a channel whose schema it cannot read shows nothing. Absent keys and index-keyed
 objects express ``None`` within those rules.
 
-Costs, measured here (Python 3.11, 2 cores, msgspec 0.23): a
-:class:`~whexar.actors.messages.ServoStates` of 24 joints (as the course's bus reads them)
-encodes in 12 µs into 2.7 kB (46 µs with the standard library's encoder, most of it
-``float.__repr__``); a small message in 0.7–1.9 µs (3–9 µs before). Decoding parses
-with msgspec too (1.7 µs against 8.7 µs for the standard library's ``json.loads``, on
-the course's servo states, leg states and goals), and falls back to ``json.loads`` for
-what msgspec refuses: ``1e999`` must read back as ``inf`` (:func:`loads`).
+Encoding and decoding go through msgspec's C code: the standard library's encoder
+spends most of a message's time in ``float.__repr__``, and its parser is several times
+slower too (docs/recording.md, "Encoding", has the costs). Decoding falls back to
+``json.loads`` for what msgspec refuses: ``1e999`` must read back as ``inf``
+(:func:`loads`).
 """
 
 from __future__ import annotations
@@ -114,8 +112,8 @@ def dumps(value: Any) -> bytes:
     """Compact JSON bytes of plain values, with the float rules of this module.
 
     msgspec's C encoder does the work: it writes a float as its shortest text that
-    reads back as the same float, like ``repr`` but about 5x faster than the standard
-    library's encoder (whose ``float.__repr__`` is most of a message's cost). It writes
+    reads back as the same float, like ``repr`` but without the standard library's
+    ``float.__repr__``, which is most of a message's cost there. It writes
     NaN and ±inf as ``null``, which these rules give only to NaN, and ``None`` never
     reaches it (an absent key): so output holding ``null`` anywhere (a string may, at
     worst a false alarm) goes again through a small Python writer that knows the rules,
@@ -520,8 +518,8 @@ _fast_loads: Final = msgspec.json.Decoder().decode
 
 
 def loads(data: bytes | str, what: str = "message") -> Any:
-    """Parsed JSON of a recorded message: msgspec's C parser (5× the standard library's,
-    floats read back exactly, tested), the standard library's where msgspec refuses a
+    """Parsed JSON of a recorded message: msgspec's C parser (faster than the standard
+    library's, floats read back exactly, tested), the standard library's where msgspec refuses a
     number (``±1e999``, whexar's infinities); :class:`EncodingError` if it is not JSON."""
     try:
         return _fast_loads(data)

@@ -9,23 +9,23 @@ owner's (:meth:`~RecorderProcess.write_pending`, :meth:`~RecorderProcess.run`,
 :meth:`~RecorderProcess.close`, ``stats``, ``failure``), so the runtime cannot tell them
 apart. The hand-over appends a reference to a bounded buffer, as in-process. Between
 cycles :meth:`~RecorderProcess.write_pending` packs what is buffered into msgpack frames
-(msgspec, one C call per :data:`PACK_SLICE` entries: about 0.65 µs an entry, messages
-as they are, dataclasses by field name) and writes them to a pipe without waiting.
+(msgspec, one C call per :data:`PACK_SLICE` entries, messages as they are, dataclasses
+by field name) and writes them to a pipe without waiting.
 
 A child process (``python -m whexar.record.sidecar``) reads the frames, rebuilds each
 message as its own type (msgspec decodes a frame into typed entries and each message's
-fields with its own type's decoder, 2.9 µs a message; floats travel as IEEE doubles, so
-the rebuilt message equals the original) and hands it to a :class:`Recorder` of its own,
+fields with its own type's decoder; floats travel as IEEE doubles, so the rebuilt
+message equals the original) and hands it to a :class:`Recorder` of its own,
 which encodes, compresses and writes the MCAP file exactly as in-process: the file is
 the same, its bytes too. The child learns a message type by its ``module:QualName``
 the first time one is handed over and imports it; a type it cannot import (defined in
 ``__main__`` or inside a function) is counted and logged on ``/log`` as not recorded.
 
-Why (measured on the course, ``whexar bench record``): writing in-process cost the
-runtime 20–26 % of its CPU, half of it encoding, compressing and indexing, the rest
-its working set slowing the bus, the emulator and the actors beside it. Here the
-runtime's own share, handing over, packing and sending, is under 2 %; the child takes
-about a quarter of the runtime's CPU on another core (a Raspberry Pi 4 has four).
+Why: writing in-process costs the runtime several times the 5 % of its CPU a
+recording may take (``whexar bench record``; docs/recording.md has the figures), half
+of it encoding, compressing and indexing, the rest its working set slowing the bus,
+the emulator and the actors beside it. Here the runtime only hands over, packs and
+sends; the child does the rest on another core (a Raspberry Pi 4 has four).
 
 Crash safety: the child ignores SIGINT and SIGTERM, which a terminal or a service
 manager sends to the whole process group, and ends the file (its summary and footer)
@@ -36,8 +36,8 @@ in-process, so if both die the file reads up to its last flush.
 
 Bounded memory: the buffer holds ``max_pending`` entries and the unsent frames
 ``max_unsent_bytes`` (a child that cannot keep up, or has not started yet: the pipe
-holds about 1.6 s of the course before the first frame waits). Past either, what does
-not fit is dropped, counted, and logged in the file.
+itself holds a second or two of a run). Past either, what does not fit is dropped,
+counted, and logged in the file.
 """
 
 from __future__ import annotations
@@ -79,9 +79,9 @@ PACK_PERIOD_S: Final = 0.05
 """How often :meth:`RecorderProcess.run` packs and sends: each send is a system call
 that wakes the child on another core (an inter-processor interrupt, dear in a virtual
 machine), so five bus cycles at a time; a runtime killed with SIGKILL loses at most
-this much, and a write still packs a few hundred entries, about 0.1 ms."""
+this much, and a write still packs only a few hundred entries (docs/recording.md)."""
 PACK_SLICE: Final = 256
-"""Entries packed per frame: about 0.17 ms of packing, so a write's budget is kept."""
+"""Entries packed per frame: one C call's worth, short enough to keep a write's budget."""
 PIPE_BYTES: Final = 1 << 20
 """The pipe's size asked for (Linux's default ceiling for an unprivileged process)."""
 MAX_UNSENT_BYTES: Final = 64 << 20

@@ -33,36 +33,31 @@ What a recording holds
 (:mod:`whexar.record.sidecar`), fed over a pipe: the runtime then only hands over and
 packs. In-process, as below, it serves a live view and the tests.
 
-Costs and defaults (measured here: Python 3.11, 2 cores, msgspec 0.23, zstandard 0.25)
----------------------------------------------------------------------------------------
-* handing over (``__call__``, :meth:`~Recorder.link_bytes`): 0.2 µs;
-* the file is written by :class:`_McapFile`, not ``mcap.writer.Writer``: that one costs
-  about 4 µs a message in Python and builds its message indexes record by record (0.76
-  ms to close 64 KiB of small messages); here a message is one ``struct`` pack and two
-  appends, a chunk's indexes one ``array`` each;
-* JSON by msgspec (:func:`whexar.record.encoding.dumps`): a small message 0.7–1.9 µs
-  (was 3–9 µs), a :class:`~whexar.actors.messages.ServoStates` of 24 joints 12 µs (was
-  46 µs); ``/joint_states`` at most every :data:`JOINT_STATES_PERIOD_S` (27 Hz);
-* the walking graph's first 20 s of course (2,300 records per simulated second, 0.94 MB
-  of JSON) cost 13.6 ms of CPU per simulated second to write, measured offline from a
-  captured run (was 38 ms), against about 175 ms for the runtime and the physics:
-  in-process, ``whexar bench record`` measured 16–26 % (was 35–40 %), above the 5 % the
-  issue asks: hence the recording process (:mod:`whexar.record.sidecar`), which leaves
-  the runtime under 2 %. Where the writing goes: compressing 0.94 MB/s of JSON (zstd
-  1.8 ms/s, lz4 0.95 but 60 % larger), the JSON itself (about 3 ms/s), and per-record
-  Python work. A binary encoding (CDR or protobuf) of the high-rate types (``LegState``
-  650/s, ``JointGoals`` 380/s, ``ServoStates`` 110/s) would shrink it further;
-* ``compression="zstd"`` (default): 215 kB per simulated second, 37 kB of it message
-  indexes (16 bytes a message, uncompressed as MCAP wants them); lz4: about 310 kB;
+Defaults, and why
+-----------------
+docs/recording.md has what each costs, measured with ``whexar bench record`` and on
+captured runs.
+
+* handing over (``__call__``, :meth:`~Recorder.link_bytes`) appends a reference, no
+  more: it runs inside the control cycle;
+* the file is written by :class:`_McapFile`, not ``mcap.writer.Writer``: that one spends
+  Python work on every message and builds its message indexes record by record; here a
+  message is one ``struct`` pack and two appends, a chunk's indexes one ``array`` each;
+* JSON by msgspec (:func:`whexar.record.encoding.dumps`), and ``/joint_states`` at most
+  every :data:`JOINT_STATES_PERIOD_S`: enough for Foxglove's 3D view, while
+  ``/servo-state`` keeps every reading;
+* in-process, writing costs the runtime more than the 5 % the issue allows: hence the
+  recording process (:mod:`whexar.record.sidecar`). A binary encoding (CDR or protobuf)
+  of the high-rate types (``LegState``, ``JointGoals``, ``ServoStates``) would shrink
+  the cost further;
+* ``compression="zstd"`` (default): smaller files than lz4, for compressing time that is
+  small beside the rest of the writing;
 * ``chunk_size=32 KiB``: a chunk's close (compression, CRC, indexes) is the longest part
-  of a write, about 0.3 ms; written every 10 ms, at most :data:`WRITE_BUDGET_S` at a
-  time, the writes between cycles took about 0.6 ms at the 99th percentile; the
-  longest (2–8 ms) were the recorder's thread preempted on a busy machine, or a garbage
-  collection (up to 90 ms for a full one with a simulation's log in memory);
+  of a write; written every 10 ms, at most :data:`WRITE_BUDGET_S` at a time, the writes
+  between cycles stay well under the 1 ms a cycle may wait;
 * ``flush_period_s=0.5``: after SIGKILL the file reads up to its last flush, so at most
   one flush period plus the time since the last :meth:`~Recorder.write_pending` is
-  lost. The tests kill a recording process just before a flush and find its last
-  record 0.499 s before the kill.
+  lost (``tests/record/test_sigkill.py`` kills a recording process just before a flush).
 """
 
 from __future__ import annotations
@@ -133,8 +128,8 @@ WRITE_PERIOD_S: Final = 0.01
 WRITE_BUDGET_S: Final = 0.0003
 """The longest :meth:`Recorder.run` writes at a time: the issue lets recording delay a
 control cycle by 1 ms at most, and one entry (a servo state and its joint-state view)
-or a chunk's close can take 0.3 ms past the budget; what is left is written after the
-actors have had their turn."""
+or a chunk's close can overrun the budget by about as much again (docs/recording.md);
+what is left is written after the actors have had their turn."""
 JOINT_STATES_PERIOD_S: Final = 1 / 30
 """``/joint_states`` are written at most this often (log time): about 27 Hz from servo
 states at 109 Hz, plenty for Foxglove's 3D view; every servo state is recorded whole."""
@@ -391,8 +386,8 @@ class Recorder(HandOver):
             self._mcap.attachment(name, media, data)
         self._file.flush()
 
-        # Compile the codec of every registered type now (well under 1 ms each), so that
-        # no write between two control cycles pays for a type's first message.
+        # Compile the codec of every registered type now, so that no write between two
+        # control cycles pays for a type's first message.
         for cls in list(MESSAGE_TYPES.values()):
             with contextlib.suppress(RecordingError):
                 codec(cls)
@@ -708,9 +703,9 @@ class Recorder(HandOver):
 class _McapFile:
     """A chunked, indexed MCAP file, written with a cheap path for messages.
 
-    ``mcap.writer.Writer`` costs about 4 µs a message in Python and builds its message
-    indexes record by record as a chunk closes (0.76 ms for 64 KiB of small messages):
-    most of what recording cost. Here a message is one ``struct`` pack and two
+    ``mcap.writer.Writer`` spends Python work on every message and builds its message
+    indexes record by record as a chunk closes: most of what recording cost
+    (docs/recording.md). Here a message is one ``struct`` pack and two
     ``bytearray`` appends, and a channel's message index is its (log time, offset) list
     packed at once as a chunk closes. The layout follows the MCAP specification
     (https://mcap.dev/spec, "Records"): magic, Header, Metadata and Attachments, then
