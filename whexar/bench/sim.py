@@ -12,7 +12,8 @@ the real actors, dynamixel-sdk, the servo emulator, the sensor-board codec,
 the MuJoCo world — on virtual time, as fast as the machine goes.
 
 * **realtime_factor** — simulated seconds per wall second of that run (the
-  world's construction is not in it; the timers below are, at about 1 %).
+  world's construction is not in it; the timers below are, a small cost:
+  docs/sim.md, "Speed").
 * **cpu_ms_per_cycle** — wall milliseconds per bus cycle (one
   :class:`~whexar.actors.messages.ServoStates` each), split four ways by
   timers installed for the run only, on the classes (not on any instance the

@@ -116,9 +116,10 @@ _CRC_TABLE: Final = _crc_table()
 
 # Two bytes per step: feeding the big-endian word w to register r gives _WORD_TABLE[r ^ w]
 # (16 input bits shift the whole register out). The CRC is linear, so entry (h << 8) | l is
-# the entry for h << 8 xor _CRC_TABLE[l]. Built on first use (~3 ms), not at import. An
-# array (128 KiB), not a list of int objects (2.3 MiB, more than a core's L2 cache): nearly
-# as fast in a tight loop, and without the cache misses once a cycle's other work evicts it.
+# the entry for h << 8 xor _CRC_TABLE[l]. Built on first use, not at import (it takes
+# milliseconds). An array (128 KiB), not a list of int objects (2.3 MiB, more than a core's
+# L2 cache): nearly as fast in a tight loop, and without the cache misses once a cycle's
+# other work evicts it.
 _WORD_TABLE: Final = array("H")
 _WORD_UNPACKERS: dict[int, Callable[..., tuple[int, ...]]] = {}
 """``unpack_from`` of n big-endian 16-bit words, by n (each made once)."""

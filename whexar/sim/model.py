@@ -45,10 +45,10 @@ and the real robot avoids collisions in its controller (5.2); self-contacts woul
 add noise and cost. Colliding: the body box, the leg segments (so a leg hits a block,
 6.7.2) and the wheels. Servo boxes and the wheel fork are visual (and carry mass).
 
-*Contacts.* An elliptic friction cone with ``impratio`` 10: on a 15° slope with the
-wheels held, wheels crept 3.4 mm/s under MuJoCo's default pyramidal cone and 0.17 mm/s
-with this (shared/notes/simulation.md, "Contacts and speed"), for about 25 % more time
-per step; ``noslip`` would stop the creep entirely but costs 50–65 %. The wheel is a
+*Contacts.* An elliptic friction cone with ``impratio`` 10: on a slope with the wheels
+held, the robot creeps a twentieth as fast as under MuJoCo's default pyramidal cone,
+for a modest cost per step; ``noslip`` would stop the creep entirely but costs more
+again (docs/sim.md, "Body, legs and wheels", has the figures). The wheel is a
 sphere by default (see :data:`WHEEL_SHAPES`).
 """
 
@@ -82,10 +82,10 @@ WHEEL_SHAPES: Final[tuple[WheelShape, ...]] = ("sphere", "cylinder")
 A sphere of the wheel's radius touches the ground at the kinematics' contact point
 whenever the axle is horizontal, and also when the trochanter tilts the leg (the
 tyres of Fig. 5.2 are round in section too). One contact per wheel with ``condim`` 3
-against two with ``condim`` 6: the notes measured 60–130 against 150–220 µs per step;
-here, standing on the flat, about 50 against 60 µs. Both roll without slip beyond the
-tyre's sinking (:data:`WHEEL_SOLREF`) and hold on a 15° slope with the wheels braked
-(creep 0.19 / 0.10 mm/s; 0.36 / 0.29 mm/s at 30°). A sphere has no scrub torque when
+against two with ``condim`` 6: a cheaper step (docs/sim.md has the times). Both roll
+without slip beyond the tyre's sinking (:data:`WHEEL_SOLREF`) and hold on a 15° slope
+with the wheels braked, creeping a fraction of a millimetre a second. A sphere has no
+scrub torque when
 the direction servo turns it in place, and it is wider than the tyre, which matters
 only against obstacles at the wheel's side. ``"cylinder"`` is the true shape, 26 mm
 wide, with torsional and rolling friction (``condim`` 6).
@@ -132,12 +132,10 @@ WHEEL_SOLREF: Final = (0.005, 1.0)
 """Wheel contacts: time constant 5 ms (MuJoCo's default 20 ms), critically damped.
 
 A stiffer contact sinks less, and on the flat the "slip" of a rolling wheel is mostly
-that sinking: the tyre rolls on a radius shorter by its penetration. The notes saw a
-stiffer ``solref`` cut slip from 0.3 % to 0.02 %; here, driving at 0.1 m/s on the flat
-(sphere / cylinder wheels): 1.06 / 0.72 % at 20 ms, 0.45 / 0.24 % at 10 ms, 0.13 /
-0.07 % at 5 ms, with the tyres 0.15 mm deep. 5 ms is 2 steps of 2.5 ms; MuJoCo raises a
-time constant below 2 timesteps to 2 timesteps itself (``refsafe``), so a longer
-timestep stays stable, with softer wheels."""
+that sinking: the tyre rolls on a radius shorter by its penetration, and 5 ms cuts it
+to an eighth of the default's (docs/sim.md, "Body, legs and wheels", has the figures).
+5 ms is 2 steps of 2.5 ms; MuJoCo raises a time constant below 2 timesteps to 2
+timesteps itself (``refsafe``), so a longer timestep stays stable, with softer wheels."""
 TIMESTEP_S: Final = 0.0025
 """The physics timestep: 2.5 ms, chosen by measurement (docs/sim.md, "Time and timestep").
 

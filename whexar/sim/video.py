@@ -25,11 +25,10 @@ the IR rays skip them), which MuJoCo hides by default: the scene option shows
 every group. Frames go straight to ffmpeg (``imageio-ffmpeg`` ships its own)
 as H.264 in ``yuv420p``, which every player plays; nothing is kept in memory.
 
-*Cost.* Frames are drawn without shadows and without multisampling. With the
-model's sun casting shadows, a 640×480 frame took 60–145 ms on this machine
-(2 cores, no GPU; shared/notes/simulation.md measured 35 ms on a quieter one)
-and its shadow map drew acne over the floor; without, 20–40 ms. A 60 s run at
-20 fps is 1200 frames: rendering, not physics, sets the pace of ``--video``.
+*Cost.* Frames are drawn without shadows and without multisampling: the sun's
+shadow map took most of a frame's time on a machine without a GPU and drew acne
+over the floor (docs/sim.md, "Video", has the times). A 60 s run at 20 fps is
+1200 frames: rendering, not physics, sets the pace of ``--video``.
 
 :func:`still` saves one frame as PNG (the README's picture).
 """
@@ -159,10 +158,10 @@ def _renderer(world: SimWorld, width: int, height: int) -> Any:
     vis = world.model.vis
     vis.global_.offwidth = max(int(vis.global_.offwidth), width)
     vis.global_.offheight = max(int(vis.global_.offheight), height)
-    vis.quality.offsamples = 0  # no multisampling: a third of the frame time (notes)
+    vis.quality.offsamples = 0  # no multisampling: a good part of a frame's time
     renderer = mujoco.Renderer(world.model, height, width)
-    # No shadows: the sun's shadow map cost 60–100 ms a frame here and drew acne
-    # (moiré) over the floor; without them a frame takes 20–40 ms.
+    # No shadows: the sun's shadow map cost most of a frame's time without a GPU and
+    # drew acne (moiré) over the floor (docs/sim.md, "Video").
     renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
     return renderer
 

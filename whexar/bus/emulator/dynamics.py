@@ -43,8 +43,8 @@ class Drive(NamedTuple):
     """What the control table asks of the motor, in ticks and seconds.
 
     A named tuple: a servo makes one after every write that changes it
-    (42 goal writes a cycle), and a tuple is made several times faster than
-    a frozen dataclass.
+    (42 goal writes a cycle), and a tuple is made in a fraction of a frozen
+    dataclass's time (docs/sim.md, "Speed").
     """
 
     torque: bool

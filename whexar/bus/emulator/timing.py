@@ -33,12 +33,10 @@ class TimingModel:
         residual = turnaround + per_status_byte · status bytes
         → turnaround = 1.0203 ms, per_status_byte = 2.008 µs
 
-    giving 118.03 / 111.40 / 100.15 Hz against 118.18 / 111.2 / 100.2 Hz
-    (−0.13 %, +0.18 %, −0.05 %) and two reads (position, then current)
-    52.74 Hz against 52.8 Hz. Writes are pure wire time: sync write of Goal
-    Position (224 bytes) 446.4 Hz against 446.6 Hz, of Goal Current (140
-    bytes) 714.3 Hz against 714.6 Hz. The host constants were measured at
-    1 Mbps and are assumed not to scale with the baud rate.
+    Writes are pure wire time. ``tests/bus/test_emulator.py`` checks the rates
+    of reads and writes against the thesis's (docs/sim.md, "Bus time", sets
+    them side by side). The host constants come from 1 Mbps and are assumed not
+    to scale with the baud rate.
     """
 
     baudrate: int = 1_000_000
