@@ -5,7 +5,8 @@
 * :mod:`~whexar.record.encoding` — JSON and JSON Schemas of the message types, link bytes;
 * :mod:`~whexar.record.reader` — reading back, cut files too; ``whexar log recover``;
 * :mod:`~whexar.record.info` — ``whexar log info``;
-* :mod:`~whexar.record.plots` — ``whexar plot``;
+* :mod:`~whexar.record.series` and :mod:`~whexar.record.plots` — ``whexar plot``: what a
+  recording's plots need, read once, and the drawing;
 * :mod:`~whexar.record.live` and :mod:`~whexar.record.foxglove` — the live view, Foxglove's
   schemas and the shipped layout;
 * :mod:`~whexar.record.replay` — ``whexar replay``: the devices played back through the same
