@@ -1,11 +1,11 @@
-# whexar: `make test` runs the whole suite; `make sim` runs the main job.
-# Both create the virtual environment on first use.
+# whexar: `make check` is the inner loop, `make test` runs the whole suite; `make sim` runs
+# the main job. All create the virtual environment on first use.
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: test sim gl lint typecheck firmware clean
+.PHONY: check test sim gl lint typecheck firmware clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "whexar needs Python >= 3.11")'
@@ -27,8 +27,17 @@ typecheck: $(STAMP)
 firmware:
 	$(MAKE) -C firmware test
 
-test: lint typecheck firmware gl
-	$(BIN)/pytest -q
+# The inner loop, in under a minute: ruff, the import contracts, mypy, and the tests not
+# marked slow (pyproject.toml: campaigns, Ray, Valgrind, simavr, long simulations,
+# rendering, subprocesses, ptys and real time). None of them needs the firmware's build
+# or the OpenGL libraries.
+check: lint typecheck
+	$(BIN)/pytest -q -m "not slow"
+
+# Everything: the inner loop, then the firmware and the slow tests (which use its build
+# and the OpenGL libraries): every test once.
+test: check firmware gl
+	$(BIN)/pytest -q -m slow
 
 # Headless OpenGL for MuJoCo's renderer (the sim's video and its test): EGL or
 # OSMesa, their Debian packages installed when missing (as root).

@@ -11,6 +11,7 @@ from whexar.bench import cycle
 from whexar.cli import main
 
 
+@pytest.mark.slow
 def test_bench_cycle_json_has_the_figures(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:

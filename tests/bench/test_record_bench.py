@@ -13,6 +13,7 @@ from whexar.bench import record, replay
 from whexar.bench.record import count_instructions, instructions, measure
 
 
+@pytest.mark.slow
 def test_the_bench_compares_a_recorded_run_with_a_plain_one() -> None:
     found = measure(seconds=1.0, repeats=1)
     assert math.isfinite(found["overhead_cpu_pct"])
@@ -27,6 +28,7 @@ def test_the_bench_compares_a_recorded_run_with_a_plain_one() -> None:
     assert found["writer_process_cpu_pct"] > 0  # the recording process did the writing
 
 
+@pytest.mark.slow
 def test_the_replay_bench_replays_a_recorded_run_as_fast_as_it_goes() -> None:
     found = replay.measure(seconds=1.0, repeats=1)
     assert found["replayed_s"] == 1.0
@@ -34,6 +36,7 @@ def test_the_replay_bench_replays_a_recorded_run_as_fast_as_it_goes() -> None:
     assert found["replay_check_wall_s"] > 0  # and it agreed with the recording: no raise
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="Valgrind is not installed")
 def test_valgrind_counts_a_commands_instructions() -> None:
     empty = instructions([sys.executable, "-c", "pass"])

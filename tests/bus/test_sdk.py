@@ -36,6 +36,7 @@ def _sdk_wait(port: WaitingPortHandler, length: int) -> bytes:
     return got
 
 
+@pytest.mark.slow
 def test_waiting_for_a_silent_servo_costs_no_cpu(pty: tuple[int, WaitingPortHandler]) -> None:
     _, port = pty
     port.setPacketTimeoutMillis(300)

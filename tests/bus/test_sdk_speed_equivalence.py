@@ -39,6 +39,7 @@ def _packet(rng: random.Random) -> list[Any]:
     return packet
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("helper", ["addStuffing", "removeStuffing"])
 def test_stuffing_helpers_are_the_sdks(helper: str) -> None:
     """Same result, same list left behind, same exception: on any list, not only packets

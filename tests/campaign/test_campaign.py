@@ -185,6 +185,7 @@ def pool_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[Row]]
     return out, result.rows
 
 
+@pytest.mark.slow
 def test_the_process_pool_runs_every_variation(pool_run: tuple[Path, list[Row]]) -> None:
     out, rows = pool_run
     assert [r.outcome for r in rows] == ["ok"] * 4
@@ -199,12 +200,14 @@ def test_the_process_pool_runs_every_variation(pool_run: tuple[Path, list[Row]])
     assert header.startswith("id,label,duration_s,terrain.slope_deg,config.locomotion.stand_up_s,")
 
 
+@pytest.mark.slow
 def test_a_run_in_a_worker_equals_the_same_run_here(pool_run: tuple[Path, list[Row]]) -> None:
     out, rows = pool_run
     campaign = load_campaign(out.parent / "c.toml")
     assert run_one(campaign.runs[3]).same_result(rows[3])
 
 
+@pytest.mark.slow
 def test_ray_gives_the_same_rows_bit_for_bit(
     pool_run: tuple[Path, list[Row]], tmp_path: Path
 ) -> None:
@@ -221,6 +224,7 @@ def test_ray_gives_the_same_rows_bit_for_bit(
         assert a.same_result(b), (a, b)
 
 
+@pytest.mark.slow
 def test_a_run_over_its_time_fails_and_the_campaign_goes_on(tmp_path: Path) -> None:
     text = """
 scenario = "wheels"
@@ -245,6 +249,7 @@ duration_s = 1.0
     assert "- run 0001 too long: timed out after 1.5 s" in summary
 
 
+@pytest.mark.slow
 def test_resume_keeps_finished_runs_and_runs_the_rest(
     pool_run: tuple[Path, list[Row]], tmp_path: Path
 ) -> None:
@@ -303,6 +308,7 @@ def test_a_slope_named_by_the_base_is_replaced_by_a_slope_variation() -> None:
     ]
 
 
+@pytest.mark.slow
 def test_a_campaign_that_keeps_recordings_writes_one_per_run(tmp_path: Path) -> None:
     from whexar.record.reader import Recording
 
@@ -334,6 +340,7 @@ def test_the_readme_and_docs_examples_load() -> None:
             assert parse_campaign(tomllib.loads(block), doc).runs
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_run_fails_its_run_and_the_campaign_goes_on(tmp_path: Path) -> None:
     import multiprocessing
     import os

@@ -153,6 +153,7 @@ def test_figures_come_from_the_rows_with_thesis_values_beside() -> None:
     assert len({f.name for f in found}) == len(found)
 
 
+@pytest.mark.slow
 def test_failed_runs_are_reported_not_hidden(tmp_path: Path) -> None:
     failed = Row("0001", "spin", {"label": "spin"}, {}, None, "failed", "timed out after 300 s")
     rows = [failed, _row("stance-1", _standing(0.5), slope=40, trochanter=False)]
@@ -257,6 +258,7 @@ def test_gait_period_from_the_legs_swings() -> None:
     assert gait_period_s(result, Window(0.0, 2.0)) is None  # one swing each: no period
 
 
+@pytest.mark.slow
 def test_total_current_on_a_short_real_run() -> None:
     """3 s of simulated time, standing up: the total current (all 42 servos, from the
     motors) is at least what the bus reads of the 24 it reports (the generic metric)."""

@@ -240,6 +240,7 @@ def test_the_campaign_silences_each_servo_once() -> None:
         assert name in names
 
 
+@pytest.mark.slow
 def test_a_silent_femur_in_a_real_walk_is_a_safe_stop(tmp_path: Path) -> None:
     # 6.5 s simulated: stand up, walk from 2.5 s, the RF femur silent at 4 s. The femur is
     # critical: the bus loses it, the runtime stops the robot, seated.

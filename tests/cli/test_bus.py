@@ -69,6 +69,7 @@ def _start(started: list[subprocess.Popen[str]], *args: str) -> tuple[subprocess
     return proc, path
 
 
+@pytest.mark.slow
 def test_emulate_then_scan_finds_42_servos_with_their_models(
     emulate: list[subprocess.Popen[str]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -101,6 +102,7 @@ def test_emulate_then_scan_finds_42_servos_with_their_models(
     assert out.splitlines()[-1].startswith("stopped: ")
 
 
+@pytest.mark.slow
 def test_emulate_stops_cleanly_on_sigint(emulate: list[subprocess.Popen[str]]) -> None:
     proc, _path = _start(emulate, "--no-realtime")
     proc.send_signal(signal.SIGINT)
@@ -118,6 +120,7 @@ def test_emulate_refuses_a_bad_fault_plan(
     assert "faults[0].ids = 99: an ID on the bus: 1–42" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_scan_with_nobody_answering_exits_1(capsys: pytest.CaptureFixture[str]) -> None:
     master, slave = os.openpty()
     try:
@@ -173,6 +176,7 @@ policy = "latest"
 """
 
 
+@pytest.mark.slow
 def test_sigkill_of_a_runtime_driving_the_wheels_and_the_watchdog_stops_them(
     emulate: list[subprocess.Popen[str]], tmp_path: Path
 ) -> None:

@@ -80,6 +80,7 @@ def test_run_refuses_a_non_positive_duration(capsys: pytest.CaptureFixture[str])
     assert "expected a number of seconds > 0" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_bench_runtime_reports_the_three_figures() -> None:
     # Small sizes: this checks the benchmark's wiring, not the speed (that is
     # what `whexar bench runtime` is for).
@@ -132,6 +133,7 @@ params = {{ via = "pipe" }}
 """
 
 
+@pytest.mark.slow
 def test_virtual_time_refuses_real_io_unless_the_graph_allows_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -148,6 +150,7 @@ def test_virtual_time_refuses_real_io_unless_the_graph_allows_it(
 WALK = DEMO.with_name("walk.toml")
 
 
+@pytest.mark.slow
 def test_a_run_is_recorded_by_default_with_the_bus_bytes_and_the_wiring(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -257,6 +260,7 @@ policy = "queue"
 """
 
 
+@pytest.mark.slow
 def test_sigint_stops_a_tight_loop_publisher_within_the_bound(tmp_path: Path) -> None:
     run = Running(tmp_path, FLOODED)
     # The heart runs its 20 cycles (0.2 s) while the flood floods: it got its
@@ -302,6 +306,7 @@ policy = "latest"
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("cleanup", "left_behind"),
     [
@@ -347,6 +352,7 @@ policy = "latest"
 """
 
 
+@pytest.mark.slow
 def test_a_second_sigint_runs_the_safe_stop_and_exits_at_once(tmp_path: Path) -> None:
     run = Running(tmp_path, SLOW_CLEANUP)
     run.wait_for("ActorReady      actor='slow'")
@@ -362,6 +368,7 @@ def test_a_second_sigint_runs_the_safe_stop_and_exits_at_once(tmp_path: Path) ->
     assert "second SIGINT: safe stop done" in err
 
 
+@pytest.mark.slow
 def test_a_second_sigint_is_heard_while_a_cleanup_blocks_the_loop(tmp_path: Path) -> None:
     run = Running(tmp_path, STUBBORN.replace("{cleanup}", "block"))
     run.wait_for("ActorReady      actor='heart'")

@@ -12,6 +12,7 @@ from whexar.cli import main
 from whexar.cli.sim import SUMMARY_KEYS
 
 
+@pytest.mark.slow
 def test_json_prints_exactly_the_summary_keys(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -34,6 +35,7 @@ def test_json_prints_exactly_the_summary_keys(
     assert frames[0].shape == (480, 640, 3)
 
 
+@pytest.mark.slow
 def test_text_summary_names_the_figures_and_the_recording(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -83,6 +85,7 @@ def test_bad_options_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
     capsys.readouterr()
 
 
+@pytest.mark.slow
 def test_bench_sim_splits_a_bus_cycle_four_ways_and_removes_its_timers() -> None:
     from whexar.bench.sim import measure
     from whexar.bus.sdk import InlinePortOwner

@@ -8,6 +8,7 @@ import json
 import threading
 from typing import Any
 
+import pytest
 import websockets
 from websockets.typing import Subprotocol
 
@@ -83,6 +84,7 @@ class Client(threading.Thread):
                     self.statuses.append(msg)
 
 
+@pytest.mark.slow
 def test_a_live_run_reaches_a_client_and_nothing_the_client_sends_reaches_the_run() -> None:
     plain = simulate(commands=COMMANDS, duration=2.0)
     with LiveView(port=0) as live:

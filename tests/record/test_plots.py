@@ -57,6 +57,7 @@ def _px(inches: float) -> int:
     return round(inches * DPI)
 
 
+@pytest.mark.slow
 def test_every_plot_is_written_at_its_size(recording: Path, whole: LogData, tmp_path: Path) -> None:
     notes: list[str] = []
     written = write_plots(recording, tmp_path / "plots", say=notes.append)
@@ -82,6 +83,7 @@ def test_every_plot_is_written_at_its_size(recording: Path, whole: LogData, tmp_
     assert _size(tmp_path / "plots" / "currents.png")[1] == _px(figure_height(6, 1.6, 3.6))
 
 
+@pytest.mark.slow
 def test_the_data_behind_the_plots(whole: LogData) -> None:
     assert whole.ended is None
     assert whole.t1 == pytest.approx(whole.last_t)
@@ -113,6 +115,7 @@ def test_the_data_behind_the_plots(whole: LogData) -> None:
     assert whole.poses
 
 
+@pytest.mark.slow
 def test_legs_joints_and_window_select_what_they_say(
     recording: Path, whole: LogData, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -148,6 +151,7 @@ def test_legs_joints_and_window_select_what_they_say(
     assert set(some.per_leg) == {0, 3}
 
 
+@pytest.mark.slow
 def test_a_cut_file_plots_up_to_where_it_ends(
     recording: Path, whole: LogData, tmp_path: Path
 ) -> None:
@@ -168,6 +172,7 @@ def test_a_cut_file_plots_up_to_where_it_ends(
     assert 0 < len(part.servo_states) < len(whole.servo_states)
 
 
+@pytest.mark.slow
 def test_bad_legs_joints_files_and_windows_are_clear_errors(
     recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

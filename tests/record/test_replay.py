@@ -39,6 +39,7 @@ def recorded(recorded_run: tuple[Path, SimResult]) -> Path:
     return recorded_run[0]
 
 
+@pytest.mark.slow
 def test_a_replay_delivers_what_the_run_delivered(recorded_run: tuple[Path, SimResult]) -> None:
     # No channel drops a message the run did not: the same counts, channel by channel.
     path, run = recorded_run
@@ -48,6 +49,7 @@ def test_a_replay_delivers_what_the_run_delivered(recorded_run: tuple[Path, SimR
         assert (again.published, dict(again.dropped)) == (stats.published, dict(stats.dropped))
 
 
+@pytest.mark.slow
 def test_a_replay_reads_its_recording_as_it_goes(
     recorded: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -85,6 +87,7 @@ def _json(capsys: pytest.CaptureFixture[str]) -> dict[str, object]:
     return dict(json.loads(out.strip().splitlines()[-1]))
 
 
+@pytest.mark.slow
 def test_a_replay_agrees_with_its_recording(
     recorded: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -108,6 +111,7 @@ def test_a_replay_agrees_with_its_recording(
     assert re.match(r"(\d+)/\1 recorded packets written, 0 differing, 0 waits", links["bus"])
 
 
+@pytest.mark.slow
 def test_a_changed_threshold_is_found_and_named(
     recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -126,6 +130,7 @@ def test_a_changed_threshold_is_found_and_named(
     assert "replayed: True" in out
 
 
+@pytest.mark.slow
 def test_the_recorded_configuration_must_be_this_versions(
     recorded: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -140,6 +145,7 @@ def test_the_recorded_configuration_must_be_this_versions(
     assert "--config FILE" in err
 
 
+@pytest.mark.slow
 def test_a_window_checks_what_is_in_it(recorded: Path) -> None:
     whole = replay(recorded, check=True)
     window = replay(recorded, check=True, start=1.0, stop=2.0)
@@ -153,6 +159,7 @@ def test_a_window_checks_what_is_in_it(recorded: Path) -> None:
     assert ticks[-1] == 1.5
 
 
+@pytest.mark.slow
 def test_a_cut_recording_replays_up_to_where_it_ends(recorded: Path, tmp_path: Path) -> None:
     cut = tmp_path / "cut.mcap"
     data = recorded.read_bytes()
@@ -165,6 +172,7 @@ def test_a_cut_recording_replays_up_to_where_it_ends(recorded: Path, tmp_path: P
     assert result.compared > 0
 
 
+@pytest.mark.slow
 def test_a_run_of_a_wiring_file_replays_without_its_command_source(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -182,6 +190,7 @@ def test_a_run_of_a_wiring_file_replays_without_its_command_source(
     assert fed["commands"] >= 1  # what the script said, fed at its times
 
 
+@pytest.mark.slow
 def test_a_run_with_faults_replays_its_faults(tmp_path: Path) -> None:
     # A femur that goes silent (the bus stops the robot), the board's cable out and back,
     # corrupted frames, the IMU unplugged: all of it is in the bytes, and replays.
@@ -219,6 +228,7 @@ def test_what_cannot_be_replayed_says_why(
     assert main(["replay", str(tmp_path / "missing.mcap")]) == 2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("check", [False, True])
 def test_a_message_that_cannot_be_read_mid_replay_is_an_error_not_a_silent_end(
     recorded: Path, monkeypatch: pytest.MonkeyPatch, check: bool
@@ -289,6 +299,7 @@ def test_the_command_line_tolerance_is_the_replays() -> None:
     assert compare(1.0, 1.0 + 1e-6, tolerance=1e-5) is None
 
 
+@pytest.mark.slow
 def test_a_replay_serves_the_live_view_and_can_be_paced(
     recorded: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

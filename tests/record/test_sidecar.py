@@ -52,6 +52,7 @@ def _feed(recorder: Recorder | RecorderProcess) -> None:
         recorder.write_pending()
 
 
+@pytest.mark.slow
 def test_every_message_type_is_written_as_the_in_process_recorder_writes_it(
     tmp_path: Path, same_value: Same
 ) -> None:
@@ -115,6 +116,7 @@ def test_a_dead_recording_process_ends_the_recording_not_the_run(tmp_path: Path)
         recorder.close()
 
 
+@pytest.mark.slow
 def test_a_stalled_recording_process_bounds_memory_and_counts_what_is_dropped(
     tmp_path: Path,
 ) -> None:

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from whexar.record.reader import Recording, recover
 from whexar.runtime.clock import monotonic, wait_until
 
@@ -61,6 +63,7 @@ def _kill_after(tmp_path: Path, recorder: str, seconds: float) -> tuple[Path, fl
     return path, killed_at
 
 
+@pytest.mark.slow
 def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -> None:
     path, killed_at = _kill_after(tmp_path, "whexar.record.writer:Recorder", 1.5)
     recording = Recording(path)
@@ -78,6 +81,7 @@ def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -
     assert Recording(fixed.output).complete
 
 
+@pytest.mark.slow
 def test_a_runtime_killed_beside_its_recording_process_leaves_a_complete_file(
     tmp_path: Path,
 ) -> None:

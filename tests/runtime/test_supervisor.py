@@ -797,6 +797,7 @@ def read_line(proc: subprocess.Popen[str], timeout_s: float = 5.0) -> str:
     return proc.stdout.readline().strip()
 
 
+@pytest.mark.slow
 def test_sigterm_to_a_real_process_stops_it_cleanly(tmp_path: Path) -> None:
     spec = graph(actor("a", period_s=0.01), actor("b", period_s=0.01), actor("c", period_s=0.01))
     proc = start_script(tmp_path, spec)
@@ -810,6 +811,7 @@ def test_sigterm_to_a_real_process_stops_it_cleanly(tmp_path: Path) -> None:
     assert out.splitlines() == ["stopped c stop", "stopped b stop", "stopped a stop"]
 
 
+@pytest.mark.slow
 def test_an_escalation_in_a_real_process_exits_non_zero(tmp_path: Path) -> None:
     spec = graph(
         actor("a", period_s=0.01),

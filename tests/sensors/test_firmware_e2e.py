@@ -39,6 +39,9 @@ from whexar.sensors.frame import Frame, FrameDecoder, Rejected
 from whexar.testing import run_actors
 from whexar.testing.sensors import sensor_graph
 
+# Builds the firmware and runs it in simavr: seconds per test.
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"
 SIM = FIRMWARE / "build" / "whexar-sim"

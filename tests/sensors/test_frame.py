@@ -313,6 +313,7 @@ def mangle(data: bytes, mutations: list[tuple[str, int, int]]) -> bytes:
     return bytes(out)
 
 
+@pytest.mark.slow
 @settings(max_examples=300, derandomize=True)
 @given(
     st.lists(frame_values, min_size=1, max_size=8),

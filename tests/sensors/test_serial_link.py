@@ -54,6 +54,7 @@ class Board:
             return b""
 
 
+@pytest.mark.slow
 def test_reader_reads_a_serial_port_and_reconnects_after_unplug(tmp_path: Path) -> None:
     board = Board(tmp_path / "ttyBOARD")
     board.plug()
@@ -85,6 +86,7 @@ def test_reader_reads_a_serial_port_and_reconnects_after_unplug(tmp_path: Path) 
     assert told == [b"rate=20#", b"rate=20#"]
 
 
+@pytest.mark.slow
 def test_cli_prints_frames_and_events_as_json(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -134,6 +136,7 @@ def test_cli_prints_frames_and_events_as_json(
     assert frames[1]["missed"] == 4
 
 
+@pytest.mark.slow
 def test_cli_on_a_missing_port_reports_it_and_keeps_looking(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections import Counter
 from pathlib import Path
 
+import pytest
+
 from whexar.actors.messages import ServoStates
 from whexar.bus.protocol import PacketDecoder
 from whexar.record.encoding import LinkBytes
@@ -16,6 +18,7 @@ from whexar.testing.walk import command
 COMMANDS = [(2.5, command(mode="ride", vx_m_s=0.1))]
 
 
+@pytest.mark.slow
 def test_recording_changes_nothing_and_holds_every_message_and_byte(tmp_path: Path) -> None:
     plain = simulate(commands=COMMANDS, duration=3.0)
     path = tmp_path / "run.mcap"

@@ -30,6 +30,7 @@ def walked() -> SimResult:
     return simulate(commands=[(WALK_AT_S, command(vx_m_s=0.1))], duration=5.0)
 
 
+@pytest.mark.slow
 def test_the_report_folder_has_every_plot_and_both_tables(
     walked: SimResult, tmp_path: Path
 ) -> None:
@@ -59,6 +60,7 @@ def test_the_report_folder_has_every_plot_and_both_tables(
     assert "| vx 0.1 |" in md.replace("| 3.0 |", "")
 
 
+@pytest.mark.slow
 def test_walking_legs_swing_and_report_goals_present_angles_and_currents(
     walked: SimResult,
 ) -> None:

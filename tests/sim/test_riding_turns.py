@@ -11,6 +11,7 @@ a 0.6 m circle, and the servos drew 1.9Ã— the current of riding straight over 8â
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from whexar.sim.run import Sample
 from whexar.sim.scenario import parse_scenario
@@ -33,6 +34,7 @@ def _mean_current(command: dict[str, object]) -> float:
     return sum(totals) / len(totals)
 
 
+@pytest.mark.slow
 def test_on_a_circle_the_wheels_do_not_fight_each_other() -> None:
     straight = _mean_current({"mode": "ride", "vx_m_s": 0.2})
     circle = _mean_current({"mode": "ride", "vx_m_s": 0.2, "turn_radius_m": 0.6})

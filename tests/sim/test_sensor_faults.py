@@ -26,6 +26,7 @@ DOC = {
 }
 
 
+@pytest.mark.slow
 def test_sensor_faults_reach_the_readers() -> None:
     result = parse_scenario(DOC, "<test>").run()
     events = result.run.log.events()
@@ -66,6 +67,7 @@ def test_a_fault_on_the_wrong_device_is_a_scenario_problem() -> None:
     assert "melt" in str(err2.value)
 
 
+@pytest.mark.slow
 def test_a_bus_fault_plan_reaches_the_simulated_servos() -> None:
     # The RF femur (servo 3) goes silent at 2 s: the bus scheduler finds it and, the
     # femur being critical, stops the robot safely.

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from whexar.bus.emulator.chain import ServoChain
 from whexar.config import RobotConfig
@@ -22,6 +23,7 @@ def _world() -> SimWorld:
     return world
 
 
+@pytest.mark.slow
 def test_a_frame_shows_the_robot_on_the_floor(tmp_path: Path) -> None:
     assert select_gl() in ("egl", "osmesa")  # `make test` installs them (make gl)
     world = _world()
@@ -36,6 +38,7 @@ def test_a_frame_shows_the_robot_on_the_floor(tmp_path: Path) -> None:
     assert path.stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_a_video_has_a_frame_per_period(tmp_path: Path) -> None:
     world = _world()
     path = tmp_path / "run.mp4"

@@ -116,6 +116,7 @@ def flat_walk() -> SimResult:
     return simulate(commands=[(4.0, command(vx_m_s=0.08))], duration=12.0)
 
 
+@pytest.mark.slow
 def test_the_same_run_gives_the_same_state_bit_for_bit() -> None:
     a = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0)
     b = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0)
@@ -127,6 +128,7 @@ def _steady(result: SimResult, start: float) -> list[float]:
     return [s.x for s in result.samples if start <= s.t <= result.duration_s]
 
 
+@pytest.mark.slow
 def test_it_stands_up_and_walks_on_the_flat_without_falling() -> None:
     r = flat_walk()
     summary = r.summary()
@@ -141,6 +143,7 @@ def test_it_stands_up_and_walks_on_the_flat_without_falling() -> None:
     assert abs(walking[-1].y) < 0.05
 
 
+@pytest.mark.slow
 def test_it_walks_up_a_15_degree_ramp_without_falling() -> None:
     r = simulate(terrain=slope(15), commands=[(4.0, command(vx_m_s=0.06))], duration=12.0)
     assert r.summary()["falls"] == 0
@@ -149,6 +152,7 @@ def test_it_walks_up_a_15_degree_ramp_without_falling() -> None:
     assert all(s.pitch == pytest.approx(-math.radians(15), abs=math.radians(3)) for s in late)
 
 
+@pytest.mark.slow
 def test_it_rides_2_m() -> None:
     r = simulate(commands=[(3.0, command(mode="ride", vx_m_s=0.15))], duration=19.0)
     assert r.summary()["falls"] == 0
