@@ -31,6 +31,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final, TypeAlias
 
+from whexar.actors.locomotion.intent import POSE_LIMIT_RAD
+from whexar.actors.locomotion.planner import MAX_TROCHANTER
 from whexar.campaign.experiments.reference import Reference, Rules, Single, Why, reference
 
 if TYPE_CHECKING:
@@ -42,11 +44,11 @@ TROCHANTER_KEY: Final = "config.locomotion.trochanter_follows_pitch"
 """The variation key of "with/without the trochanter" (eq. 4.18; absent: the default, on)."""
 
 # The simulation's limits, not the thesis's: they decide what cannot be expressed.
-MAX_BODY_PITCH_DEG: Final = 20.0
-"""The coordinator's limit on a commanded body pitch (``_limit`` of ``pitch_rad``): stance
-No. 2 levels the body by pitching it, so it cannot be expressed on steeper slopes."""
-MAX_TROCHANTER_DEG: Final = 45.0
-"""The coordinator's limit on the trochanter's follow of the pitch (``MAX_TROCHANTER``)."""
+MAX_BODY_PITCH_DEG: Final = math.degrees(POSE_LIMIT_RAD)
+"""The coordinator's limit on a commanded body pitch: stance No. 2 levels the body by
+pitching it, so it cannot be expressed on steeper slopes."""
+MAX_TROCHANTER_DEG: Final = math.degrees(MAX_TROCHANTER)
+"""The coordinator's limit on the trochanter's follow of the pitch."""
 
 NOT_SIMULATED: Final = "not simulated"
 NO_VALUE: Final = "no value: the run failed or the figure is undefined for it"
