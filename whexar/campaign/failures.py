@@ -60,7 +60,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Final, cast
 
-from whexar.actors.messages import BusLost, LocomotionState, ServoDegraded, ServoFault, SwingEnded
+from whexar.actors.messages import BusLost, LocomotionState, ServoDegraded, ServoFault
 from whexar.bus.emulator.faults import FaultInjector
 from whexar.campaign.metrics import MetricFn, Value, Window, metric, path_speed
 from whexar.record.plots import new_figure, save_figure
@@ -93,8 +93,9 @@ MOVING: Final = frozenset({"walking", "riding", "hybrid", "transition"})
 """The coordinator's activities in which the robot is under way."""
 SITTING: Final = frozenset({"sitting_down", "seated"})
 """Activities in which the body is lowered on purpose."""
-ROUTINE: Final = (*Quiet, SwingEnded, ActorStopped)
-"""Events that are no reaction to a failure: start-up, every step's end, actors stopping."""
+ROUTINE: Final = (*Quiet, ActorStopped)
+"""Events that are no reaction to a failure: start-up and actors stopping (a swing's end is
+no event: it has its own channel)."""
 OUTCOMES: Final = ("walk goes on", "stalled", "safe stop", "fall")
 """The robot's outcomes, from the best to the worst."""
 OUTCOME_COLOURS: Final = {

@@ -46,6 +46,7 @@ from whexar.actors.messages import (
     MotionCommand,
     ServoStates,
 )
+from whexar.kinematics.stability import convex_hull
 from whexar.record import plots
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import LEG_NAMES
@@ -174,28 +175,6 @@ def leg_currents(result: SimResult) -> tuple[list[float], np.ndarray]:
 # --------------------------------------------------------------------------- plots
 
 
-def _hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
-    """Convex hull (Andrew's monotone chain): the footprint of a tilted box's corners."""
-    pts = sorted(set(points))
-    if len(pts) < 3:
-        return pts
-
-    def cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-
-    lower: list[tuple[float, float]] = []
-    for p in pts:
-        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
-            lower.pop()
-        lower.append(p)
-    upper: list[tuple[float, float]] = []
-    for p in reversed(pts):
-        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
-            upper.pop()
-        upper.append(p)
-    return lower[:-1] + upper[:-1]
-
-
 @dataclass(frozen=True)
 class _Shape:
     """The footprint of one terrain geom: a polygon, or a circle (centre and radius)."""
@@ -231,7 +210,7 @@ def _terrain_shapes(result: SimResult) -> list[_Shape]:
                 for signs in itertools.product((-1, 1), repeat=3)
                 for p in [centre + rot @ (np.array(signs) * size)]
             ]
-            out.append(_Shape(label, colour, tuple(_hull(corners))))
+            out.append(_Shape(label, colour, tuple(convex_hull(corners))))
         elif gtype == mujoco.mjtGeom.mjGEOM_SPHERE:
             point = (float(centre[0]), float(centre[1]))
             out.append(_Shape(label, colour, (point,), float(size[0])))
