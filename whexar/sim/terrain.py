@@ -17,9 +17,8 @@ z up, metres. Features of the built-in terrains start at x ≥ 1 m so the robot 
 on the flat; :func:`course` starts its features at x = 2 m.
 
 * The slope is a real tilted plane rising along +x, not a rotated gravity, so an IMU
-  reads real accelerations (a rotated gravity leaves a ``framequat`` level:
-  shared/notes/simulation.md, "Contacts and speed").
-* Steps are boxes: a step in a heightfield becomes a one-cell ramp (same notes).
+  reads real accelerations (with a rotated gravity a ``framequat`` sensor stays level).
+* Steps are boxes: a step in a heightfield becomes a one-cell ramp.
 * A ditch cuts the floor: the floor plane sinks to the ditch's bottom and slabs
   (boxes) with their tops at z = 0 carry the ground on either side.
 
