@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import pytest
 
@@ -161,16 +162,27 @@ def swing_ends(out: list[Message]) -> list[SwingEnded]:
     return [m for m in out if isinstance(m, SwingEnded)]
 
 
-def test_a_swing_that_lands_where_expected_is_completed() -> None:
-    leg, angles = placed()
+def swing(
+    leg: LegController, angles: list[float], amps: Callable[[float, float], float]
+) -> list[Message]:
+    """A 0.5 s swing from 1.1 s, run to 1.9 s; the femur draws ``amps(u, foot z)`` at the
+    swing's phase u and the foot's height of the cycle before."""
     cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
     out: list[Message] = []
     t = 1.1
-    while t < 1.8:
-        # The sensor feels the ground from the cycle the swing ends on (u = 1).
-        amps = LOADED_A if t >= 1.6 - 1e-9 else 0.0
-        out.extend(leg.cycle(t, states(t, angles, femur_a=amps), steps=(cmd,) if t == 1.1 else ()))
+    while t < 1.9:
+        assert leg.foot is not None
+        current = amps((t - 1.1) / 0.5, leg.foot[2])
+        steps = (cmd,) if t == 1.1 else ()
+        out.extend(leg.cycle(t, states(t, angles, femur_a=current), steps=steps))
         t = round(t + DT, 9)
+    return out
+
+
+def test_a_swing_that_lands_where_expected_is_completed() -> None:
+    leg, angles = placed()
+    # The sensor feels the ground from the cycle the swing ends on (u = 1).
+    out = swing(leg, angles, lambda u, z: LOADED_A if u >= 1.0 - 1e-9 else 0.0)
     (ended,) = swing_ends(out)
     assert (ended.outcome, ended.leg, ended.source) == ("completed", 0, "leg-RF")
     assert ended.ground_offset_m == pytest.approx(0.0, abs=1e-9)
@@ -200,17 +212,8 @@ def test_a_swing_without_ground_ends_with_no_contact() -> None:
 
 def test_a_swing_stopped_on_the_way_down_ends_early_and_the_stance_stays_there() -> None:
     leg, angles = placed()
-    # Ground 2 cm above the floor: contact once the descending foot is below it.
-    ground = NEUTRAL[2] + 0.02
-    out: list[Message] = []
-    t = 1.1
-    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
-    while t < 1.9:
-        assert leg.foot is not None
-        past_apex = (t - 1.1) / 0.5 > 0.5
-        amps = LOADED_A if past_apex and leg.foot[2] <= ground else 0.0
-        out.extend(leg.cycle(t, states(t, angles, femur_a=amps), steps=(cmd,) if t == 1.1 else ()))
-        t = round(t + DT, 9)
+    ground = NEUTRAL[2] + 0.02  # 2 cm above the floor: met past the apex, coming down
+    out = swing(leg, angles, lambda u, z: LOADED_A if u > 0.5 and z <= ground else 0.0)
     (ended,) = swing_ends(out)
     assert ended.outcome == "early_contact"
     assert 0.0 < ended.ground_offset_m <= 0.025
@@ -220,14 +223,8 @@ def test_a_swing_stopped_on_the_way_down_ends_early_and_the_stance_stays_there()
 
 def test_contact_on_the_way_up_is_blocked_once_and_the_swing_goes_on() -> None:
     leg, angles = placed()
-    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
-    out: list[Message] = []
-    t = 1.1
-    while t < 1.8:
-        u = (t - 1.1) / 0.5
-        amps = LOADED_A if 0.1 < u < 0.3 else 0.0  # something pushes back on the way up
-        out.extend(leg.cycle(t, states(t, angles, femur_a=amps), steps=(cmd,) if t == 1.1 else ()))
-        t = round(t + DT, 9)
+    # Something pushes back on the way up, then lets go.
+    out = swing(leg, angles, lambda u, z: LOADED_A if 0.1 < u < 0.3 else 0.0)
     outcomes = [e.outcome for e in swing_ends(out)]
     assert outcomes[0] == "blocked"
     assert outcomes.count("blocked") == 1
