@@ -18,12 +18,21 @@ through the same edges:
 * :class:`I2CReplay` (device ``replay:NAME``, :data:`REPLAYED_I2C`) answers each
   call with the recorded bytes, raises the recorded ``OSError`` where the call
   failed, and says when a call differs from the recorded one.
+
+A log recorded on a real clock (the robot) is played back *by time*: the replayed
+reader's calls come at its own instants, never exactly the recorded ones, and may
+be more or fewer. :class:`I2CFieldReplay` answers each call from the recorded calls
+of the same kind (the same address and register) near that time: the first one
+within :data:`FIELD_WINDOW_S` of it, else the last answer held; a recorded failure
+fails again, a recorded unplugged link is unplugged for as long. The board needs no
+such mode: its frames come at their recorded times either way.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections import deque
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Final
 
@@ -33,9 +42,11 @@ from whexar.runtime.devices import DeviceKind
 from whexar.runtime.streams import Dealer, Hand
 
 __all__ = [
+    "FIELD_WINDOW_S",
     "REPLAYED_BOARD",
     "REPLAYED_I2C",
     "BoardReplay",
+    "I2CFieldReplay",
     "I2CReplay",
     "LinkMismatch",
     "ReplayLink",
@@ -193,5 +204,129 @@ class I2CReplay(_Compared):
         """Nothing to close: the recording stays for the next open."""
 
 
-REPLAYED_I2C: Final = DeviceKind[I2CReplay]("replayed I²C bus", "replay")
+FIELD_WINDOW_S: Final = 0.05
+"""How far apart in time a replayed call and a recorded one of the same kind may be and
+still be the same call: a few of the IMU's sample periods at its default 119 Hz, well
+under the 0.3 s after which the reader calls the link stale."""
+
+
+class I2CFieldReplay(_Compared):
+    """The recorded I²C calls of the IMU reader played back by time (module docstring),
+    opened as ``device = "replay:NAME"``. :attr:`now` is the runtime's clock, set by the
+    replay once it runs; ``window_s`` how far a call may be from its recorded one."""
+
+    def __init__(self, events: Iterable[Event], *, window_s: float = FIELD_WINDOW_S) -> None:
+        super().__init__()
+        self.events: Hand[Event] = Hand.of(events)
+        """Read as the replay goes, up to a window ahead of the clock."""
+        self.window_s = window_s
+        self.now: Callable[[], float] = lambda: 0.0
+        self._calls: dict[bytes, deque[tuple[float, bytes | None, str | None]]] = {}
+        """Per call (address, register[, value]): (t, answer, error) recorded, not yet taken."""
+        self._held: dict[bytes, bytes | None] = {}
+        self._out: bytes | None = None
+        """The call read last, awaiting its answer in the recording."""
+        self._down: deque[tuple[float, float, str]] = deque()
+        """Recorded spells of an unplugged link: (from, to, why)."""
+        self._gone_at: tuple[float, str] | None = None
+        self.unrecorded_calls = 0
+        """Calls of a kind the recording never made."""
+        self.held_calls = 0
+        """Calls answered with the last answer held (none recorded near their time)."""
+        self.skipped_calls = 0
+        """Recorded calls no replayed call came near."""
+
+    def _read_to(self, t: float) -> None:
+        """Take the recorded events up to ``t``."""
+        events = self.events
+        while (first := events.peek()) is not None and first[1] <= t:
+            direction, at, data = events.popleft()
+            if direction == "tx":
+                self._out = bytes(data)
+                self._calls.setdefault(self._out, deque()).append((at, None, None))
+            elif direction in ("rx", "error") and self._out is not None:
+                queue = self._calls[self._out]
+                t0, _, _ = queue[-1]
+                if direction == "rx":
+                    queue[-1] = (t0, bytes(data), None)
+                else:
+                    queue[-1] = (t0, None, data.decode("utf-8", "replace"))
+            elif direction == "gone":
+                self._gone_at = (at, data.decode("utf-8", "replace"))
+            elif direction == "open" and self._gone_at is not None:
+                self._down.append((*self._gone_at[:1], at, self._gone_at[1]))
+                self._gone_at = None
+
+    def _unplugged(self, t: float) -> str | None:
+        """Why the link was down at ``t`` on the recording, or ``None``."""
+        while self._down and self._down[0][1] <= t:
+            self._down.popleft()
+        if self._down and self._down[0][0] <= t:
+            return self._down[0][2]
+        if self._gone_at is not None and self._gone_at[0] <= t:
+            return self._gone_at[1]
+        return None
+
+    def opened(self) -> I2CFieldReplay:
+        """Open as the recording had it open at this time: unplugged, raise its reason."""
+        t = self.now()
+        self._read_to(t + self.window_s)
+        why = self._unplugged(t)
+        if why is not None:
+            raise DeviceGoneError(why)
+        return self
+
+    def _call(self, out: bytes) -> bytes | None:
+        t = self.now()
+        self._read_to(t + self.window_s)
+        why = self._unplugged(t)
+        if why is not None:
+            raise OSError(19, f"No such device (recorded: {why})")
+        queue = self._calls.get(out)
+        if queue is None and out not in self._held:
+            self.unrecorded_calls += 1
+            self.compare(None, out)
+            raise OSError(121, "Remote I/O error (a call the recording never made)")
+        while queue and queue[0][0] < t - self.window_s:
+            queue.popleft()
+            self.skipped_calls += 1
+        if not queue:
+            self.held_calls += 1
+            return self._held.get(out)
+        _, answer, error = queue.popleft()
+        if error is not None:
+            code, _, text = error.partition(":")
+            raise OSError(int(code) if code.lstrip("-").isdigit() else 5, text)
+        self._held[out] = answer
+        return answer
+
+    def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
+        got = self._call(bytes((i2c_addr, register)))
+        if not got:
+            self.unrecorded_calls += 1
+            raise OSError(121, "Remote I/O error (no recorded answer)")
+        return got[0]
+
+    def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None:
+        out = bytes((i2c_addr, register, value))
+        if out not in self._calls and out not in self._held:
+            # A setting the recording never wrote (a changed configuration): the chip
+            # takes it; the replay says it differs.
+            self.compare(None, out)
+            self._held[out] = None
+            return
+        self._call(out)
+
+    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]:
+        got = self._call(bytes((i2c_addr, register)))
+        if got is None or len(got) < length:
+            self.unrecorded_calls += 1
+            raise OSError(121, "Remote I/O error (no recorded answer of that length)")
+        return list(got[:length])
+
+    def close(self) -> None:
+        """Nothing to close: the recording stays for the next open."""
+
+
+REPLAYED_I2C: Final = DeviceKind[I2CReplay | I2CFieldReplay]("replayed I²C bus", "replay")
 """Opened by :class:`~whexar.actors.sensing.ImuReader` as ``device = "replay:NAME"``."""

@@ -1,0 +1,665 @@
+"""Two runs compared by time: the check for a real clock, and ``whexar log diff``.
+
+Theory of operation
+-------------------
+A log recorded on a real clock never replays to the last bit: timers, retries and
+a goal landing one cycle later shift every message a little. So two runs — a
+recording and its replay, or two recordings — are compared as signals, not as
+message sequences:
+
+* **States** (servo states, goals, the legs' and the coordinator's states, the body
+  motion, tilt, loads, ranges, servo health) are cut into keyed samples: one per
+  numeric, boolean or text field of a message, keyed by the channel, the message
+  type, who it is about (its source, its leg, joint or servo) and the field
+  (``servo-state ServoStates leg 0 joint 2 position_rad``). A recorded sample agrees
+  when a sample of the other run with the same key, within ``window_s`` of it (or
+  the one in force at its time: a goal holds until the next), is within the field
+  kind's absolute tolerance (:class:`Tolerances`: angles in radians, lengths in
+  metres, currents in amperes…; angles and the gait phase wrap around).
+* **Discrete messages** — events, step commands, swing ends — are matched by kind
+  and order (the i-th ``ServoDegraded`` of the one with the i-th of the other),
+  their times within ``event_s``, their fields as states.
+
+The result (:class:`DiffReport`) is a table, not a first difference: per channel
+and field, how many samples were compared, the largest and the mean difference,
+the tolerance, how many were beyond it and the first time one was (naming the
+key: the joint, the leg); per event kind, the counts on both sides and the first
+one unmatched. :attr:`DiffReport.agrees` is the verdict. The runtime's own
+lifecycle events (an actor starting, stopping) are not compared: a replay starts
+its actors its own way.
+
+Both runs are read as they go: :class:`TimeDiff` keeps, per key, only the samples
+within a window of the instant being compared, so memory stays bounded on an
+hour's log. It is fed in time order, from two recordings (:func:`diff_recordings`)
+or from a recording and a live replay (``whexar replay --check`` on a field log).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from typing import TYPE_CHECKING, Any, Final
+
+from whexar.robot import JOINT_NAMES, LEG_NAMES
+from whexar.runtime.messages import (
+    ActorFailed,
+    ActorReady,
+    ActorRestarted,
+    ActorStarting,
+    ActorStopped,
+    Event,
+    Message,
+)
+
+if TYPE_CHECKING:
+    from whexar.record.reader import Recording
+
+__all__ = [
+    "DEFAULT_TOLERANCES",
+    "DiffReport",
+    "EventRow",
+    "FieldRow",
+    "TimeDiff",
+    "Tolerances",
+]
+
+LIFECYCLE: Final = (ActorStarting, ActorReady, ActorStopped, ActorRestarted, ActorFailed)
+"""Runtime events about the process, not the robot: not compared."""
+_SKIPPED: Final = frozenset({"t", "source", "cycle", "seq", "missed"})
+"""Fields that are no signal: the time, who said it, counters of the process."""
+_IDENTITY: Final = ("leg", "joint", "servo_id", "sensor", "link")
+"""Fields that say what a message or an element is about: part of the key."""
+_DISCRETE: Final = frozenset({"StepCommand", "SwingEnded", "MotionCommand"})
+"""Messages that are no state: matched by kind and order, as events are."""
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """How far two runs may differ and still agree, per field kind (absolute)."""
+
+    window_s: float = 0.02
+    """How far apart in time two samples of one signal may be: about two bus cycles."""
+    event_s: float = 0.25
+    """How far apart in time two matched events (or step commands) may be."""
+    angle_rad: float = 0.02
+    angular_velocity_rad_s: float = 0.5
+    length_m: float = 0.005
+    speed_m_s: float = 0.02
+    current_a: float = 0.25
+    voltage_v: float = 0.3
+    temperature_c: float = 2.0
+    acceleration_g: float = 0.05
+    time_s: float = 0.05
+    ratio: float = 0.1
+    """Progress through a step, the gait's phase (0…1)."""
+    load: float = 5.0
+    """The eq. 5.19 load indicator, A/m."""
+    value: float = 1e-6
+    """Any other number."""
+
+    def of(self, kind: str) -> float:
+        """The tolerance of field kind ``kind`` (0 for counts, flags and labels)."""
+        return float(getattr(self, _KIND_FIELD.get(kind, "value"), 0.0))
+
+    def with_(self, settings: Mapping[str, float]) -> Tolerances:
+        """These tolerances with ``settings`` (``{"angle_rad": 0.05}``) changed; an unknown
+        name is a :class:`KeyError` naming the known ones."""
+        known = {f.name for f in fields(self)}
+        unknown = sorted(set(settings) - known)
+        if unknown:
+            raise KeyError(f"{', '.join(unknown)}; known: {', '.join(sorted(known))}")
+        return replace(self, **dict(settings))
+
+
+DEFAULT_TOLERANCES: Final = Tolerances()
+_KIND_FIELD: Final = {
+    "angle": "angle_rad",
+    "angular_velocity": "angular_velocity_rad_s",
+    "length": "length_m",
+    "speed": "speed_m_s",
+    "current": "current_a",
+    "voltage": "voltage_v",
+    "temperature": "temperature_c",
+    "acceleration": "acceleration_g",
+    "time": "time_s",
+    "ratio": "ratio",
+    "phase": "ratio",
+    "load": "load",
+    "value": "value",
+}
+_SUFFIXES: Final = (
+    ("_rad_s", "angular_velocity"),
+    ("_dps", "angular_velocity"),
+    ("_rad", "angle"),
+    ("_m_s", "speed"),
+    ("_m", "length"),
+    ("_s", "time"),
+    ("_a", "current"),
+    ("_v", "voltage"),
+    ("_c", "temperature"),
+    ("_g", "acceleration"),
+)
+_NAMED: Final[Mapping[str, str | tuple[str, ...]]] = {
+    "twist": ("speed", "speed", "angular_velocity"),
+    "pose": ("length", "length", "length", "angle", "angle", "angle"),
+    "foot": "length",
+    "measured_foot": "length",
+    "target": "length",
+    "progress": "ratio",
+    "gait_phase": "phase",
+    "load": "load",
+}
+
+
+def _kind(name: str, value: object, index: int | None = None) -> str:
+    """The kind of field ``name`` (element ``index`` of it), from its name or its type."""
+    if isinstance(value, bool) or value is None:
+        return "flag"
+    if isinstance(value, str):
+        return "label"
+    if isinstance(value, int):
+        return "count"
+    named = _NAMED.get(name)
+    if isinstance(named, tuple):
+        return named[index] if index is not None and index < len(named) else "value"
+    if named is not None:
+        return named
+    for suffix, kind in _SUFFIXES:
+        if name.endswith(suffix):
+            return kind
+    return "value"
+
+
+Key = tuple[str, ...]
+Value = float | str | bool | None
+
+
+def _about(record: object) -> tuple[str, ...]:
+    """What a message or an element is about, as key parts (``leg RF``, ``joint femur``)."""
+    parts: list[str] = []
+    for name in _IDENTITY:
+        value = getattr(record, name, None)
+        if value is None:
+            continue
+        if name == "leg" and isinstance(value, int) and 0 <= value < len(LEG_NAMES):
+            value = LEG_NAMES[value]
+        elif name == "joint" and isinstance(value, int) and 0 <= value < len(JOINT_NAMES):
+            value = JOINT_NAMES[value]
+        parts.append(f"{name} {value}")
+    return tuple(parts)
+
+
+def _items(record: object) -> Iterator[tuple[str, object]]:
+    if is_dataclass(record):
+        for f in fields(record):
+            yield f.name, getattr(record, f.name)
+    elif isinstance(record, tuple) and hasattr(record, "_fields"):  # a named tuple
+        yield from zip(record._fields, record, strict=True)
+
+
+def samples(msg: Message) -> Iterator[tuple[tuple[str, ...], str, str, Value]]:
+    """The signals of ``msg``: ``(about, field, kind, value)`` for every compared field.
+
+    Sequences of records (a cycle's joints, a message's goals) give each element's
+    fields, keyed by what the element is about; tuples of numbers give one per item."""
+    about = (f"from {msg.source}", *_about(msg))
+    for name, value in _items(msg):
+        if name in _SKIPPED or name in _IDENTITY:
+            continue
+        yield from _field(about, name, value)
+
+
+def _field(
+    about: tuple[str, ...], name: str, value: object
+) -> Iterator[tuple[tuple[str, ...], str, str, Value]]:
+    if isinstance(value, tuple | list):
+        if value and (is_dataclass(value[0]) or hasattr(value[0], "_fields")):
+            for element in value:
+                inner = (*about, *_about(element))
+                for sub, item in _items(element):
+                    if sub not in _SKIPPED and sub not in _IDENTITY:
+                        yield from _field(inner, sub, item)
+            return
+        if all(isinstance(v, int | float | type(None)) and not isinstance(v, bool) for v in value):
+            for i, item in enumerate(value):
+                yield (
+                    about,
+                    f"{name}[{i}]",
+                    _kind(name, item if item is not None else 0.0, i),
+                    (None if item is None else float(item)),
+                )
+            return
+        yield about, name, "label", repr(value)
+        return
+    if isinstance(value, bool | str) or value is None:
+        yield about, name, _kind(name, value), value
+    elif isinstance(value, int | float):
+        kind = _kind(name, value)
+        yield about, name, kind, float(value)
+    else:
+        yield about, name, "label", repr(value)
+
+
+def _difference(kind: str, a: Value, b: Value) -> float:
+    """How far apart two samples of one kind are: 0 or 1 for flags, labels and counts
+    that differ or not; a wrapped difference for angles and phases."""
+    if a == b:
+        return 0.0  # infinities too: a rangefinder that sees nothing in both runs
+    if isinstance(a, float) and isinstance(b, float):
+        if math.isnan(a) and math.isnan(b):
+            return 0.0
+        d = abs(a - b)
+        if kind == "angle":
+            d = abs((a - b + math.pi) % (2 * math.pi) - math.pi)
+        elif kind == "phase":
+            d = min(d % 1.0, 1.0 - d % 1.0)
+        if kind == "count":
+            return 0.0 if d == 0 else 1.0
+        return d if not math.isnan(d) else math.inf
+    return 0.0 if a == b else 1.0
+
+
+# --------------------------------------------------------------------------- the report
+
+
+@dataclass
+class FieldRow:
+    """One channel's field: how it compared (the largest difference over all keys)."""
+
+    channel: str
+    message: str
+    field: str
+    kind: str
+    tolerance: float
+    compared: int = 0
+    beyond: int = 0
+    largest: float = 0.0
+    total: float = 0.0
+    unmatched: int = 0
+    """Samples of one run with nothing of the other near them."""
+    first_beyond_t: float | None = None
+    first_beyond_key: str | None = None
+    worst_key: str | None = None
+
+    @property
+    def mean(self) -> float:
+        """The mean difference over the compared samples."""
+        return self.total / self.compared if self.compared else 0.0
+
+    @property
+    def agrees(self) -> bool:
+        return self.beyond == 0 and self.unmatched == 0
+
+
+@dataclass
+class EventRow:
+    """One kind of event (or step command, swing end): how the two runs' matched."""
+
+    channel: str
+    kind: str
+    first: int = 0
+    """How many the first run (the recording) has."""
+    second: int = 0
+    """How many the second run (the replay) has."""
+    largest_dt: float = 0.0
+    late: int = 0
+    """Matched pairs further apart in time than the tolerance."""
+    first_unmatched_t: float | None = None
+
+    @property
+    def agrees(self) -> bool:
+        return self.first == self.second and self.late == 0
+
+
+@dataclass
+class DiffReport:
+    """What :class:`TimeDiff` found (module docstring)."""
+
+    tolerances: Tolerances
+    fields: list[FieldRow] = field(default_factory=list)
+    events: list[EventRow] = field(default_factory=list)
+    compared: int = 0
+    """Samples compared in all."""
+
+    @property
+    def agrees(self) -> bool:
+        """Every field within its tolerance and every event matched."""
+        return all(r.agrees for r in self.fields) and all(r.agrees for r in self.events)
+
+    @property
+    def first_beyond(self) -> FieldRow | None:
+        """The field row whose first difference beyond tolerance came earliest."""
+        found = [r for r in self.fields if r.first_beyond_t is not None]
+        return min(found, key=lambda r: r.first_beyond_t or 0.0, default=None)
+
+    def table(self, *, all_rows: bool = False) -> str:
+        """The report as text: the rows beyond tolerance first (all rows with ``all_rows``)."""
+        rows = sorted(
+            (r for r in self.fields if all_rows or not r.agrees),
+            key=lambda r: (r.agrees, r.first_beyond_t if r.first_beyond_t is not None else 0.0),
+        )
+        lines = [
+            f"{'channel':<13}{'field':<34}{'compared':>9}{'largest':>11}{'mean':>11}"
+            f"{'tolerance':>11}{'beyond':>8}  first beyond"
+        ]
+        for r in rows:
+            first = (
+                f"t = {r.first_beyond_t:.3f} s, {r.first_beyond_key}"
+                if r.first_beyond_t is not None
+                else ("-" if not r.unmatched else f"{r.unmatched} without a match")
+            )
+            lines.append(
+                f"{r.channel:<13}{(r.message + '.' + r.field)[:33]:<34}{r.compared:>9}"
+                f"{_num(r.largest):>11}{_num(r.mean):>11}{_num(r.tolerance):>11}"
+                f"{r.beyond:>8}  {first}"
+            )
+        events = [e for e in self.events if all_rows or not e.agrees]
+        if events:
+            lines.append("")
+            lines.append(
+                f"{'channel':<13}{'event':<34}{'recorded':>9}{'replayed':>9}  first unmatched"
+            )
+            for e in events:
+                first = "-" if e.first_unmatched_t is None else f"t = {e.first_unmatched_t:.3f} s"
+                lines.append(f"{e.channel:<13}{e.kind[:33]:<34}{e.first:>9}{e.second:>9}  {first}")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict[str, Any]:
+        """The report as strict JSON data (no infinities)."""
+        return {
+            "agrees": self.agrees,
+            "compared": self.compared,
+            "tolerances": {
+                f.name: getattr(self.tolerances, f.name) for f in fields(self.tolerances)
+            },
+            "fields": [
+                {
+                    "channel": r.channel,
+                    "message": r.message,
+                    "field": r.field,
+                    "kind": r.kind,
+                    "tolerance": r.tolerance,
+                    "compared": r.compared,
+                    "beyond": r.beyond,
+                    "unmatched": r.unmatched,
+                    "largest": _finite(r.largest),
+                    "mean": _finite(r.mean),
+                    "first_beyond_t": r.first_beyond_t,
+                    "first_beyond_key": r.first_beyond_key,
+                    "worst_key": r.worst_key,
+                }
+                for r in self.fields
+            ],
+            "events": [
+                {
+                    "channel": e.channel,
+                    "kind": e.kind,
+                    "recorded": e.first,
+                    "replayed": e.second,
+                    "late": e.late,
+                    "largest_dt": _finite(e.largest_dt),
+                    "first_unmatched_t": e.first_unmatched_t,
+                }
+                for e in self.events
+            ],
+        }
+
+
+def _num(x: float) -> str:
+    return "inf" if math.isinf(x) else f"{x:.4g}"
+
+
+def _finite(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+# --------------------------------------------------------------------------- the diff
+
+
+@dataclass(slots=True)
+class _Signal:
+    """One key's samples of both runs, within a window of what is being compared."""
+
+    row: FieldRow
+    name: str
+    first: deque[tuple[float, Value]] = field(default_factory=deque)
+    second: deque[tuple[float, Value]] = field(default_factory=deque)
+    held: tuple[float, Value] | None = None
+    """The second run's last sample before the window: in force until the next."""
+    held_first: tuple[float, Value] | None = None
+
+
+class TimeDiff:
+    """Compares two runs fed in time order (module docstring); :meth:`report` at the end.
+
+    :meth:`first` and :meth:`second` take a message of each run with its channel;
+    :meth:`advance` says both runs have been fed up to a time, so that what is
+    further than the window behind it can be compared and let go."""
+
+    def __init__(self, tolerances: Tolerances = DEFAULT_TOLERANCES) -> None:
+        self.tol = tolerances
+        self._signals: dict[Key, _Signal] = {}
+        self._rows: dict[tuple[str, str, str], FieldRow] = {}
+        self._events: dict[tuple[str, str], tuple[EventRow, deque[Message], deque[Message]]] = {}
+        self._event_rows: dict[tuple[str, str], EventRow] = {}
+        self.compared = 0
+        self._dirty: set[Key] = set()
+
+    # ----------------------------------------------------------------- feeding
+
+    def first(self, channel: str, msg: Message) -> None:
+        """A message of the first run (the recording)."""
+        self._take(channel, msg, True)
+
+    def second(self, channel: str, msg: Message) -> None:
+        """A message of the second run (the replay)."""
+        self._take(channel, msg, False)
+
+    def _take(self, channel: str, msg: Message, first: bool) -> None:
+        if isinstance(msg, LIFECYCLE):
+            return
+        name = type(msg).__name__
+        if isinstance(msg, Event) or name in _DISCRETE:
+            self._event(channel, msg, first)
+            return
+        t = msg.t
+        for about, fname, kind, value in samples(msg):
+            key = (channel, name, *about, fname)
+            signal = self._signals.get(key)
+            if signal is None:
+                row = self._row(channel, name, fname, kind)
+                signal = self._signals[key] = _Signal(row, " ".join(about[1:]) or about[0])
+            (signal.first if first else signal.second).append((t, value))
+            self._dirty.add(key)
+
+    def _row(self, channel: str, message: str, fname: str, kind: str) -> FieldRow:
+        generic = fname.split("[")[0] + ("[]" if "[" in fname else "")
+        found = self._rows.get((channel, message, generic))
+        if found is None:
+            found = self._rows[(channel, message, generic)] = FieldRow(
+                channel, message, generic, kind, self.tol.of(kind)
+            )
+        return found
+
+    def _event(self, channel: str, msg: Message, first: bool) -> None:
+        what = type(msg).__name__
+        leg = getattr(msg, "leg", None)
+        if leg is not None and isinstance(leg, int) and 0 <= leg < len(LEG_NAMES):
+            what = f"{what} {LEG_NAMES[leg]}"
+        key = (channel, what)
+        entry = self._events.get(key)
+        if entry is None:
+            entry = self._events[key] = (EventRow(channel, what), deque(), deque())
+        row, mine, theirs = (
+            (entry[0], entry[1], entry[2]) if first else (entry[0], entry[2], entry[1])
+        )
+        if first:
+            row.first += 1
+        else:
+            row.second += 1
+        if theirs:
+            other = theirs.popleft()
+            a, b = (msg, other) if first else (other, msg)
+            self._match(row, channel, a, b)
+        else:
+            mine.append(msg)
+
+    def _match(self, row: EventRow, channel: str, a: Message, b: Message) -> None:
+        dt = abs(a.t - b.t)
+        row.largest_dt = max(row.largest_dt, dt)
+        if dt > self.tol.event_s:
+            row.late += 1
+        name = type(a).__name__
+        if type(b) is not type(a):
+            return
+        for (about, fname, kind, va), (_, _, _, vb) in zip(samples(a), samples(b), strict=False):
+            frow = self._row(channel, name, fname, kind)
+            self._score(frow, " ".join(about[1:]) or about[0], a.t, _difference(kind, va, vb))
+
+    # ----------------------------------------------------------------- comparing
+
+    def _score(self, row: FieldRow, key: str, t: float, d: float) -> None:
+        row.compared += 1
+        self.compared += 1
+        row.total += d if math.isfinite(d) else 0.0
+        if d > row.largest:
+            row.largest = d
+            row.worst_key = key
+        if d > row.tolerance + 1e-12:
+            row.beyond += 1
+            if row.first_beyond_t is None or t < row.first_beyond_t:
+                row.first_beyond_t = t
+                row.first_beyond_key = key
+
+    def advance(self, t: float) -> None:
+        """Both runs are fed up to ``t``: compare what lies a window behind it."""
+        frontier = t - self.tol.window_s
+        done = set()
+        for key in self._dirty:
+            signal = self._signals[key]
+            self._compare(signal, frontier)
+            if not signal.first and not signal.second:
+                done.add(key)
+        self._dirty -= done
+
+    def _compare(self, s: _Signal, frontier: float) -> None:
+        w = self.tol.window_s
+        row = s.row
+        kind = row.kind
+        first, second = s.first, s.second
+        while first and first[0][0] <= frontier:
+            t, value = first.popleft()
+            # The other run's samples older than the window go, the last one kept held.
+            while second and second[0][0] < t - w:
+                s.held = second.popleft()
+            best = math.inf
+            if s.held is not None:
+                best = _difference(kind, value, s.held[1])
+            for u, other in second:
+                if u > t + w:
+                    break
+                d = _difference(kind, value, other)
+                if d < best:
+                    best = d
+            if best == math.inf and s.held is None and not second:
+                row.unmatched += 1
+                continue
+            s.held_first = (t, value)
+            self._score(row, s.name, t, best)
+        # What the second run said with no first-run sample anywhere near: unmatched,
+        # unless the first run has held a value through it.
+        while second and second[0][0] < frontier - w:
+            u, _ = second.popleft()
+            if s.held_first is None:
+                row.unmatched += 1
+            s.held = (u, _)
+
+    def report(self) -> DiffReport:
+        """Compare everything left and say how the two runs agree."""
+        for key in list(self._dirty):
+            self._compare(self._signals[key], math.inf)
+        for row, mine, theirs in self._events.values():
+            left = mine or theirs
+            if left:
+                row.first_unmatched_t = left[0].t
+        events = [entry[0] for entry in self._events.values()]
+        return DiffReport(
+            self.tol,
+            sorted(self._rows.values(), key=lambda r: (r.channel, r.message, r.field)),
+            sorted(events, key=lambda e: (e.channel, e.kind)),
+            self.compared,
+        )
+
+
+def merged(
+    a: Iterable[tuple[str, Message]], b: Iterable[tuple[str, Message]]
+) -> Iterator[tuple[bool, str, Message]]:
+    """Two runs' ``(channel, message)`` streams, merged by time: ``(from_a, channel, msg)``."""
+    ia, ib = iter(a), iter(b)
+    na, nb = next(ia, None), next(ib, None)
+    while na is not None or nb is not None:
+        if nb is None or (na is not None and na[1].t <= nb[1].t):
+            assert na is not None
+            yield True, na[0], na[1]
+            na = next(ia, None)
+        else:
+            yield False, nb[0], nb[1]
+            nb = next(ib, None)
+
+
+def diff_streams(
+    a: Iterable[tuple[str, Message]],
+    b: Iterable[tuple[str, Message]],
+    tolerances: Tolerances = DEFAULT_TOLERANCES,
+) -> DiffReport:
+    """Compare two runs' message streams (each in time order, or nearly)."""
+    diff = TimeDiff(tolerances)
+    last = -math.inf
+    for from_a, channel, msg in merged(a, b):
+        (diff.first if from_a else diff.second)(channel, msg)
+        if msg.t > last + tolerances.window_s:
+            last = msg.t
+            # Messages come a little out of order across channels: a margin behind.
+            diff.advance(msg.t - tolerances.window_s)
+    return diff.report()
+
+
+def recorded_messages(
+    path: str | os.PathLike[str], channels: Iterable[str] | None = None
+) -> Iterator[tuple[str, Message]]:
+    """A recording's messages as ``(channel, message)``, in log-time order: the channels
+    of its wiring and the events (or ``channels``); no device bytes, no viewer topics."""
+    from whexar.record.reader import Recording
+
+    rec = Recording(path)
+    rec.check_compatible()
+    if channels is None:
+        channels = [*wiring_channels(rec), "events"]
+    for r in rec.records([f"/{ch}" for ch in channels]):
+        if isinstance(r.value, Message):
+            yield r.topic[1:], r.value
+
+
+def wiring_channels(rec: Recording) -> list[str]:
+    """The channels a recording's wiring declares (none when it holds no wiring)."""
+    import json
+    import tomllib
+
+    for name, attachment in sorted(rec.attachments.items()):
+        if name.startswith("wiring."):
+            text = attachment.data.decode("utf-8")
+            data = json.loads(text) if name.endswith(".json") else tomllib.loads(text)
+            return [str(ch) for ch in data.get("channels", {})]
+    return []
+
+
+def diff_recordings(
+    a: str | os.PathLike[str],
+    b: str | os.PathLike[str],
+    tolerances: Tolerances = DEFAULT_TOLERANCES,
+) -> DiffReport:
+    """Compare two recordings' messages by time (``whexar log diff A B``)."""
+    return diff_streams(recorded_messages(a), recorded_messages(b), tolerances)
