@@ -67,7 +67,8 @@ class Report:
 
     @property
     def json(self) -> dict[str, Any]:
-        """What ``--json`` prints: :attr:`data` if the suite gave it, else :attr:`figures`."""
+        """What ``--json`` prints: :attr:`data` if the suite gave it, else :attr:`figures`
+        (as strict JSON: a figure that is not finite, a rate over no time, is ``null``)."""
         return self.data if self.data is not None else dict(self.figures)
 
     @property

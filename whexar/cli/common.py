@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import os
 import shutil
@@ -13,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Final, TypeAlias
 
+from whexar import _json
 from whexar.errors import ConfigError, UsageError
 from whexar.runtime.clock import wall_stamp
 
@@ -22,9 +22,11 @@ Commands: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
 """The ``whexar`` subcommand table each group adds its commands to."""
 
 
-def print_json(value: object) -> None:
-    """Print ``value`` as one line of JSON."""
-    print(json.dumps(value, indent=None, sort_keys=False))
+def print_json(value: object, *, indent: int | None = None) -> None:
+    """Print ``value`` as strict JSON, one line unless ``indent``: a float that is not
+    finite is ``null``, never ``NaN`` or ``Infinity``, which strict parsers refuse
+    (:mod:`whexar._json`, which every ``--json`` goes through)."""
+    print(_json.dumps(value, indent=indent))
 
 
 def print_problems(exc: ConfigError, stream: Any = None) -> None:

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
-from whexar.cli.common import Commands, print_problems
+from whexar.cli.common import Commands, print_json, print_problems
 from whexar.errors import ConfigError
 
 
@@ -26,7 +25,7 @@ def _config_check(args: argparse.Namespace) -> int:
 def _config_schema(args: argparse.Namespace) -> int:
     from whexar.config import config_schema
 
-    print(json.dumps(config_schema(), indent=2))
+    print_json(config_schema(), indent=2)
     return 0
 
 

@@ -8,9 +8,9 @@ change of the accelerometer's plausibility.
 Each IR rangefinder reads one of three ways: a distance; nothing within
 range (``--`` in a line, ``"clear"``); or no reading, its input at 0 V — an
 unplugged or unpowered sensor, whose view is unknown (``n/c`` in a line,
-``"no_reading"``). With ``--json`` every line is one JSON object whose
-``kind`` is ``frame`` or ``event`` (then ``event`` is its class name);
-``ir_distance_m`` holds a distance or ``null`` per sensor and
+``"no_reading"``). With ``--json`` every line is one strict JSON object (no
+``NaN`` or ``Infinity``) whose ``kind`` is ``frame`` or ``event`` (then ``event``
+is its class name); ``ir_distance_m`` holds a distance or ``null`` per sensor and
 ``ir_status`` says which of the three it is (``"range"``, ``"clear"``,
 ``"no_reading"``); ``loads`` are the FSR counts; ``roll_deg`` and
 ``pitch_deg`` are ``null`` when there is no tilt (no accelerometer fitted, or
@@ -20,12 +20,12 @@ its reading is not gravity).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from whexar import _json
 from whexar.actors.messages import (
     AccelImplausible,
     AccelPlausible,
@@ -165,9 +165,9 @@ def observer(as_json: bool, write: Callable[[str], None]) -> Callable[[str, Mess
 
     def observe(channel: str, msg: Message) -> None:
         if channel == "frames" and isinstance(msg, SensorFrame):
-            write(json.dumps(frame_record(msg)) if as_json else frame_line(msg))
+            write(_json.dumps(frame_record(msg)) if as_json else frame_line(msg))
         elif channel == EVENTS_CHANNEL and isinstance(msg, SENSOR_EVENTS):
-            write(json.dumps(event_record(msg)) if as_json else event_line(msg))
+            write(_json.dumps(event_record(msg)) if as_json else event_line(msg))
 
     return observe
 

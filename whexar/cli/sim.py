@@ -14,8 +14,11 @@ activity; the report's gait diagram has the activity. When stderr is no
 terminal, a line is printed every 10 s of simulated time instead.
 
 At the end: the summary as text, or with ``--json`` one JSON object with
-exactly :data:`SUMMARY_KEYS`. ``--report DIR`` writes the plots and tables
-(:mod:`whexar.sim.report`), ``--video FILE.mp4`` renders the run headless
+exactly :data:`SUMMARY_KEYS`, strict JSON: a figure with no finite value is ``null``
+(``cost_of_transport`` when the body did not move; ``min_stability_margin_m`` when the
+robot was never on its legs or, at some cycle, had fewer than three feet down and so no
+support polygon, which the text shows as −inf). ``--report DIR`` writes the plots and
+tables (:mod:`whexar.sim.report`), ``--video FILE.mp4`` renders the run headless
 (:mod:`whexar.sim.video`), ``--view`` shows it in MuJoCo's viewer, paced to
 real time, where a display exists.
 
@@ -311,9 +314,7 @@ def _sim(args: argparse.Namespace) -> int:
     if result.recording is not None:
         print(f"recording: {result.recording}", file=sys.stderr)
     if args.json:
-        from whexar.sim.report import json_safe
-
-        print_json(json_safe({key: summary.get(key) for key in SUMMARY_KEYS}))
+        print_json({key: summary.get(key) for key in SUMMARY_KEYS})
     else:
         print(summary_text(scenario.name, summary))
     return 0

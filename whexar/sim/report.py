@@ -30,7 +30,6 @@ messages of the run's log; matplotlib draws with its Agg backend (no display).
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -39,6 +38,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from whexar import _json
 from whexar.actors.messages import (
     JointGoals,
     LegState,
@@ -350,17 +350,6 @@ FIGURES: Final = {
 """The summary's figures: key → (label, unit, format), in the order they are shown."""
 
 
-def json_safe(value: Any) -> Any:
-    """``value`` with every non-finite float (a margin of −∞) as ``None``: JSON has no ∞."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: json_safe(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [json_safe(v) for v in value]
-    return value
-
-
 def format_figure(key: str, value: object) -> str:
     """One summary figure as text with its unit (``0.512 m``); ``—`` when there is none."""
     _, unit, fmt = FIGURES.get(key, (key, "", "{}"))
@@ -430,7 +419,8 @@ def write_report(
         "segments": [{**asdict(s), "mean_power_w": s.mean_power_w} for s in found],
     }
     json_path = out / "summary.json"
-    json_path.write_text(json.dumps(json_safe(doc), indent=2) + "\n", encoding="utf-8")
+    # Strict JSON: a figure with no finite value (a margin of −∞) is null.
+    json_path.write_text(_json.dumps(doc, indent=2) + "\n", encoding="utf-8")
     md_path = out / "summary.md"
     heading = title if not description else f"{title}\n\n{description}"
     md_path.write_text(summary_markdown(summary, found, title=heading), encoding="utf-8")
@@ -444,7 +434,6 @@ __all__ = [
     "activity_intervals",
     "format_figure",
     "joint_traces",
-    "json_safe",
     "leg_currents",
     "plot_cot",
     "plot_currents",
