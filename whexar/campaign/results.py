@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from whexar._json import dumps as strict_dumps
 from whexar.campaign.metrics import registry
 from whexar.campaign.spec import REPORTS
 
@@ -55,7 +56,9 @@ def _json(result: CampaignResult) -> Path:
         "wall_s": result.wall_s,
         "rows": [r.to_json() for r in result.rows],
     }
-    path.write_text(json.dumps(doc, indent=1, default=str) + "\n")
+    # Strict JSON: a metric with no finite value (a margin of −∞) is null, as one
+    # undefined for its run is.
+    path.write_text(strict_dumps(doc, indent=1, default=str) + "\n")
     return path
 
 

@@ -58,7 +58,10 @@ from whexar.errors import UsageError
 from whexar.runtime.clock import monotonic
 
 RUNS_FILE: Final = "runs.jsonl"
-"""Rows as they finish, one JSON object a line: what ``--resume`` reads."""
+"""Rows as they finish, one JSON object a line: what ``--resume`` reads. Python's JSON,
+``NaN`` and ``Infinity`` included, not strict JSON: a kept row must come back exactly as it
+was run, so that a resumed campaign's rows equal a fresh one's (``results.json`` is the
+strict copy)."""
 POLL_S: Final = 0.5
 """How often the runner looks at the clock for timeouts and progress."""
 RAY_INSTALL: Final = "--ray needs Ray, which is not installed: pip install 'whexar[cluster]'"
