@@ -19,7 +19,9 @@ What each figure runs (42 servos, 1 Mbps, Return Delay Time 20 µs):
   in another process waiting out each transaction's wire time: the path a
   U2D2 takes, with the emulator standing in for the servos.
 * **realtime_cpu_ms_per_cycle** — in those runs, the runtime process's CPU
-  time (all threads) per cycle: what is left of a Raspberry Pi's cores.
+  time (all threads) per cycle: what is left of a Raspberry Pi's cores. When
+  no cycle came through after the warm-up (``realtime_hz`` 0), it is infinite:
+  ``null`` in ``--json``.
 * **baseline_hz** — the same cycle as a plain dynamixel-sdk loop on the same
   kind of pty (``GroupSyncRead`` then ``GroupSyncWrite``, as users write it):
   the runtime must not be slower than that.
