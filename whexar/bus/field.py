@@ -300,10 +300,14 @@ class Exchange:
     t: float
     data: bytes
     end: float
-    begin: float
-    """When the exchange before it was over: it began between then and :attr:`t` (a
-    real port stamps a packet as it goes out; an emulated one once its exchange is
-    over, :func:`~whexar.bus.sdk.tap_port`)."""
+    after: float
+    """When the exchange before it was over: it began no earlier."""
+    first_read: float | None = None
+    """When the first of its reply was read. At :attr:`t` itself, the packet was stamped
+    once its whole exchange was over — an emulated port's way; a real one stamps a
+    packet as it goes out (:func:`~whexar.bus.sdk.tap_port`)."""
+    read: int = 0
+    """Bytes of its reply read."""
 
 
 class BusDecoder:
@@ -342,8 +346,12 @@ class BusDecoder:
             self._chunks.append(data)
             exchange = self._exchange
             # Read after a packet written mid-reply: the SDK reading out a reply all there.
-            if self._reading and exchange is not None and t > exchange.end:
-                exchange.end = t
+            if self._reading and exchange is not None:
+                if exchange.first_read is None:
+                    exchange.first_read = t
+                exchange.read += len(data)
+                if t > exchange.end:
+                    exchange.end = t
         elif direction == "tx":
             self._sent(t, data if data.__class__ is bytes else bytes(data), out)
         elif direction == "timeout":
@@ -947,8 +955,9 @@ class FieldBus:
     def pace(self, request: bytes, t: float) -> float | None:
         """When the recording's exchange of ``request`` was over, if the replay's at bus
         time ``t`` is that one: the first the recording sent within ``write_window_s`` of
-        ``t`` (the replay's first packet: whenever the recording's bus started). Every
-        recorded packet up to it is passed; ``None``: the recording has none there."""
+        ``t`` (for the replay's first packet, sent before the recording's bus started:
+        whenever it did). Every recorded packet up to it is passed; ``None``: the
+        recording has none there."""
         exchanges = self._exchanges
         w = self.write_window_s
         while exchanges and exchanges[0].t < t - w:
@@ -956,11 +965,12 @@ class FieldBus:
         ahead = t + w
         if self._first:
             self._first = False
-            ahead = math.inf
             if not self.ended:
                 self._read_to(t + self._lookahead)
+            if exchanges and t < self._began(exchanges[0]):
+                ahead = math.inf  # the replay's bus starts first: it waits for the robot's
         for k, exchange in enumerate(exchanges):
-            if exchange.begin > ahead:
+            if self._began(exchange) > ahead:
                 return None
             if exchange.data == request:
                 for _ in range(k + 1):
@@ -968,6 +978,17 @@ class FieldBus:
                 self.paced += 1
                 return exchange.end
         return None
+
+    def _began(self, exchange: Exchange) -> float:
+        """When a recorded exchange began: as stamped, or — stamped once over, by an
+        emulated port — its bus time before that (twice the emulator's, for a slower bus),
+        after the exchange before it."""
+        if exchange.first_read != exchange.t:
+            return exchange.t
+        timing = self.chain.timing
+        n = exchange.read
+        took = timing.wire_s(len(exchange.data) + n) + timing.turnaround_s
+        return max(exchange.after, exchange.t - 2 * (took + timing.per_status_byte_s * n))
 
     def _read_to(self, t: float) -> None:
         """Decode the recording up to recorded time ``t`` (or its end)."""
