@@ -81,7 +81,7 @@ import math
 from collections import Counter, deque
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Final, NamedTuple
 
 from whexar.bus.control_table import MODELS, TABLE_SIZE, Register, ServoModel
 from whexar.bus.emulator.chain import ServoChain, Transaction
@@ -90,10 +90,12 @@ from whexar.bus.emulator.timing import TimingModel
 from whexar.bus.protocol import (
     ALERT,
     BROADCAST_ID,
+    HEADER,
     Instruction,
     Packet,
     PacketDecoder,
     PacketError,
+    crc16,
     parse_bulk_read_params,
     parse_bulk_write_params,
     parse_read_params,
@@ -101,6 +103,7 @@ from whexar.bus.protocol import (
     parse_sync_write_params,
     parse_write_params,
     split_fast_status,
+    unstuff,
 )
 from whexar.errors import UsageError
 from whexar.runtime.streams import Hand
@@ -183,9 +186,10 @@ _KNOWN: Final = math.inf
 # --------------------------------------------------------------------------- facts
 
 
-@dataclass(frozen=True, slots=True)
-class Answered:
-    """A status packet from ``servo_id`` at ``t``: its ERR byte and the spans it carries."""
+class Answered(NamedTuple):
+    """A status packet from ``servo_id`` at ``t``: its ERR byte and the spans it carries.
+
+    The facts are named tuples: some forty of them are decoded per cycle of the robot."""
 
     t: float
     servo_id: int
@@ -196,16 +200,14 @@ class Answered:
     """It was a servo's part of a Fast Sync/Bulk Read."""
 
 
-@dataclass(frozen=True, slots=True)
-class Silent:
+class Silent(NamedTuple):
     """The SDK waited for ``servo_id`` until ``t`` and no status came (a recorded timeout)."""
 
     t: float
     servo_id: int
 
 
-@dataclass(frozen=True, slots=True)
-class Written:
+class Written(NamedTuple):
     """A packet written at ``t`` that changes ``servo_id``: its instruction and, for the
     writes, ``data`` at address ``start`` (``servo_id`` is the broadcast ID for a
     broadcast Write: every servo)."""
@@ -308,11 +310,20 @@ class Exchange:
     packet as it goes out (:func:`~whexar.bus.sdk.tap_port`)."""
     read: int = 0
     """Bytes of its reply read."""
+    writes: list[tuple[tuple[int, str], _Recorded]] = field(default_factory=list)
+    """The registers it writes, as :class:`FieldBus` keeps them for comparison."""
+    began: float | None = None
+    """When it began (:meth:`FieldBus.pace` works it out once)."""
+
+
+WriteSink = Callable[[float, int, list[tuple[int, int, bytes]]], None]
+"""``(t, instruction, [(servo, start, data)])``: a packet written (:func:`packet_writes`)."""
 
 
 class BusDecoder:
     """Turns a bus link's recorded events, fed in order, into :data:`Fact` s (module doc);
-    each packet written also into an :class:`Exchange` in ``exchanges``, if given.
+    each packet written also into an :class:`Exchange` in ``exchanges``, if given, and
+    the writes to ``on_write`` instead of the facts, if given.
 
     The bytes read for one request are decoded together, once its exchange is over (the
     next request, a timeout, :meth:`close`), and its answers are stamped with the time the
@@ -320,18 +331,24 @@ class BusDecoder:
     three pieces, and a goal write riding on a read (:meth:`whexar.bus.sdk.DxlBus.sync_read`)
     goes out once the reply is complete, before the SDK has read it all out."""
 
-    def __init__(self, exchanges: deque[Exchange] | None = None) -> None:
+    def __init__(
+        self, exchanges: deque[Exchange] | None = None, on_write: WriteSink | None = None
+    ) -> None:
         self._tx = PacketDecoder(max_length=0xFFFF)
+        self.on_write = on_write
+        """Where the writes go, if not into the facts as :class:`Written`."""
         self._rx = PacketDecoder(max_length=0xFFFF)
         self._chunks: list[bytes] = []
         """Bytes read for the current request, not yet decoded."""
         self._request: _Request | None = None
+        self._statuses: dict[bytes, _Status] = {}
+        """Status packets checked (:func:`_statuses`)."""
         self._asked: dict[bytes, _Asked] = {}
         """Requests decoded, by their bytes: a cycle sends the same ones again and again."""
         self.exchanges = exchanges
         self._exchange: Exchange | None = None
         """The exchange of the last packet that expects an answer."""
-        self._last: Exchange | None = None
+        self.last: Exchange | None = None
         """The exchange of the last packet written."""
         self._reading = False
         """The last packet written expects an answer: what is read ends its exchange."""
@@ -372,8 +389,12 @@ class BusDecoder:
             self.packets += 1
             inst = p.instruction
             if inst in _WRITES or inst in _OTHER_WRITES:
-                for sid, start, span in packet_writes(p):
-                    out.append(Written(t, sid, inst, start, span))
+                if self.on_write is not None:
+                    self.on_write(t, inst, packet_writes(p))
+                else:
+                    out.extend(
+                        Written(t, sid, inst, start, span) for sid, start, span in packet_writes(p)
+                    )
             if not expects_answer(p):
                 continue  # nothing answers it: a reply still being read is the last request's
             self._flush(out)
@@ -389,9 +410,9 @@ class BusDecoder:
             opened = True
         if self._tx.pending:
             self._tx.reset()
-        last = self._last
+        last = self.last
         exchange = Exchange(t, data, t, t if last is None else min(t, last.end))
-        self._last = exchange
+        self.last = exchange
         if self.exchanges is not None:
             self.exchanges.append(exchange)
         if opened:
@@ -409,42 +430,46 @@ class BusDecoder:
             self.strays += 1
             return
         t = self._exchange.end if self._exchange is not None else -math.inf
-        for packet in self._rx.feed(data):
-            if packet.is_status:
-                self._answer(request, packet, t, out)
+        statuses = _statuses(data, self._statuses)
+        if statuses is None:  # not whole packets back to back: the decoder's patient way
+            statuses = [(p.id, p.error or 0, p.params) for p in self._rx.feed(data) if p.is_status]
+        for sid, error, params in statuses:
+            self._answer(request, sid, error, params, t, out)
 
-    def _answer(self, request: _Request, p: Packet, t: float, out: list[Fact]) -> None:
+    def _answer(
+        self, request: _Request, sid: int, error: int, params: bytes, t: float, out: list[Fact]
+    ) -> None:
         asked = request.asked
         inst = asked.instruction
-        error = p.error or 0
         if inst in _FAST:
-            if p.id != BROADCAST_ID:
+            if sid != BROADCAST_ID:
                 self.strays += 1
                 return
             try:
-                parts = split_fast_status(p, [length for _, _, length in asked.order])
+                lengths = [length for _, _, length in asked.order]
+                parts = split_fast_status(Packet(sid, _STATUS, params, error), lengths)
             except PacketError:
                 return  # a servo left its part out: the packet names no one reliably
-            for (err, sid, data), (wanted, start, _) in zip(parts, asked.order, strict=True):
-                if sid == wanted:
-                    request.answered.add(sid)
-                    out.append(Answered(t, sid, err, self._spans(err, start, data), True))
+            for (err, one, data), (wanted, start, _) in zip(parts, asked.order, strict=True):
+                if one == wanted:
+                    request.answered.add(one)
+                    out.append(Answered(t, one, err, self._spans(err, start, data), True))
             return
-        span = asked.spans.get(p.id)
+        span = asked.spans.get(sid)
         if span is None and inst == Instruction.PING and asked.id == BROADCAST_ID:
             span = (0, 0)  # a broadcast Ping: every servo answers it
         if span is None:
             self.strays += 1
             return
-        request.answered.add(p.id)
+        request.answered.add(sid)
         start, length = span
         if inst == Instruction.PING:
-            spans = ((0, p.params[0:2]), (6, p.params[2:3])) if len(p.params) == 3 else ()
-            out.append(Answered(t, p.id, error, spans))
-        elif length and len(p.params) == length:
-            out.append(Answered(t, p.id, error, self._spans(error, start, p.params)))
+            spans = ((0, params[0:2]), (6, params[2:3])) if len(params) == 3 else ()
+            out.append(Answered(t, sid, error, spans))
+        elif length and len(params) == length:
+            out.append(Answered(t, sid, error, self._spans(error, start, params)))
         else:
-            out.append(Answered(t, p.id, error))
+            out.append(Answered(t, sid, error))
 
     @staticmethod
     def _spans(error: int, start: int, data: bytes) -> tuple[tuple[int, bytes], ...]:
@@ -462,6 +487,50 @@ class BusDecoder:
                 request.answered.add(sid)
                 out.append(Silent(t, sid))
                 return
+
+
+_STATUS: Final = int(Instruction.STATUS)
+_STUFFED: Final = b"\xff\xff\xfd\xfd"
+
+
+_Status = tuple[int, int, bytes]
+"""A status packet's ID, ERR byte and parameters."""
+_KNOWN_STATUSES: Final = 4096
+"""Status packets kept once checked (:func:`_statuses`): a servo standing still, a supply
+steady, answer the same bytes again and again (two recorded statuses in three repeat one
+before them, on a walk)."""
+
+
+def _statuses(data: bytes, known: dict[bytes, _Status]) -> list[_Status] | None:
+    """``(id, error, params)`` of each status packet of ``data``, if it is status packets
+    back to back, each whole and its CRC right (what a reply nearly always is); else
+    ``None``. Packet layout and stuffing: e-manual, Protocol 2.0 (as
+    :class:`~whexar.bus.protocol.PacketDecoder`, without its hunt for a header).
+    ``known``: packets checked before, by their bytes (filled here)."""
+    out: list[_Status] = []
+    at, n = 0, len(data)
+    while at < n:
+        if n - at < 11:
+            return None
+        end = at + 7 + (data[at + 5] | data[at + 6] << 8)
+        packet = data[at:end]
+        status = known.get(packet)
+        if status is None:
+            if end > n or end - at < 11 or packet[:4] != HEADER or packet[7] != _STATUS:
+                return None
+            if crc16(packet[:-2]) != packet[-2] | packet[-1] << 8:
+                return None
+            sid = packet[4]
+            body = packet[7:-2]  # INST, ERR, params
+            if sid != BROADCAST_ID and _STUFFED in body:  # a fast status packet is not stuffed
+                body = unstuff(body)
+            status = (sid, body[1], body[2:])
+            if len(known) >= _KNOWN_STATUSES:
+                known.clear()
+            known[packet] = status
+        out.append(status)
+        at = end
+    return out
 
 
 def decode(events: Iterable[tuple[str, float, bytes]]) -> Iterator[Fact]:
@@ -663,8 +732,8 @@ class FieldServo(VirtualServo):
     def write(self, address: int, data: bytes) -> int:
         """The emulator's write; what it takes is the replay's from then on."""
         error = super().write(address, data)
-        if not error:
-            n = len(data)
+        n = len(data)
+        if not error and 0 in self.owned[address : address + n]:  # a goal: owned since
             self.owned[address : address + n] = bytes((1,)) * n
             self.seen[address : address + n] = [_KNOWN] * n
         return error
@@ -730,14 +799,32 @@ class _Writes:
         self.counts: Counter[str] = Counter()
         self.kept: list[WriteMismatch] = []
 
-    def recorded(self, t: float, sid: int, register: str, value: int) -> None:
+    def recorded(
+        self, t: float, sid: int, register: str, value: int
+    ) -> tuple[tuple[int, str], _Recorded]:
         entry = _Recorded(t, value)
         key = (sid, register)
         queue = self.recent.get(key)
         if queue is None:
             queue = self.recent[key] = deque()
         queue.append(entry)
-        self.order.append((key, entry))
+        kept = (key, entry)
+        self.order.append(kept)
+        return kept
+
+    def agreed(self, t: float, entries: Iterable[tuple[tuple[int, str], _Recorded]]) -> None:
+        """The replay wrote at ``t`` exactly these recorded writes (made about then): each
+        agrees, and meets the recorded ones of its servo and register in the window."""
+        replayed, recent = self.replayed, self.recent
+        early, late = t - self.window_s, t + self.window_s
+        for key, entry in entries:
+            self.compared += 1
+            replayed[key] = entry.value
+            for e in recent[key]:
+                if e.t > late:
+                    break
+                if e.t >= early:
+                    e.met = True
 
     def expire(self, t: float) -> None:
         """Recorded writes now out of reach of any write to come: one the replay did not
@@ -837,11 +924,15 @@ class FieldBus:
         """Read as the replay goes (module doc)."""
         self._exchanges: deque[Exchange] = deque()
         """Recorded packets not yet passed (:meth:`pace`)."""
-        self._decoder = BusDecoder(self._exchanges if pace else None)
+        self._decoder = BusDecoder(self._exchanges if pace else None, self._recorded_write)
         self._first = True
         """No packet was paced yet: the first may wait for the recording's bus to start."""
         self.paced = 0
         """Exchanges that took the recording's time (:meth:`pace`)."""
+        self._matched: Exchange | None = None
+        """The recorded exchange the transaction under way is (:meth:`pace`)."""
+        self._writing: list[tuple[tuple[int, str], _Recorded]] | None = None
+        """The recorded writes of the packet being decoded."""
         self._facts: deque[Answered | Silent] = deque()
         """Decoded, not yet applied (recorded after the bus time)."""
         self._decoded_to = -math.inf
@@ -959,6 +1050,7 @@ class FieldBus:
         whenever it did). Every recorded packet up to it is passed; ``None``: the
         recording has none there."""
         exchanges = self._exchanges
+        self._matched = None
         w = self.write_window_s
         while exchanges and exchanges[0].t < t - w:
             exchanges.popleft()
@@ -976,6 +1068,7 @@ class FieldBus:
                 for _ in range(k + 1):
                     exchanges.popleft()
                 self.paced += 1
+                self._matched = exchange
                 return exchange.end
         return None
 
@@ -983,12 +1076,18 @@ class FieldBus:
         """When a recorded exchange began: as stamped, or — stamped once over, by an
         emulated port — its bus time before that (twice the emulator's, for a slower bus),
         after the exchange before it."""
-        if exchange.first_read != exchange.t:
-            return exchange.t
-        timing = self.chain.timing
-        n = exchange.read
-        took = timing.wire_s(len(exchange.data) + n) + timing.turnaround_s
-        return max(exchange.after, exchange.t - 2 * (took + timing.per_status_byte_s * n))
+        began = exchange.began
+        if began is not None:
+            return began
+        began = exchange.t
+        if exchange.first_read == began:
+            timing = self.chain.timing
+            n = exchange.read
+            took = timing.wire_s(len(exchange.data) + n) + timing.turnaround_s
+            began = max(exchange.after, began - 2 * (took + timing.per_status_byte_s * n))
+        if exchange is not self._decoder.last:  # its reply is all decoded: final
+            exchange.began = began
+        return began
 
     def _read_to(self, t: float) -> None:
         """Decode the recording up to recorded time ``t`` (or its end)."""
@@ -1005,6 +1104,10 @@ class FieldBus:
                 break
             direction, last, data = queue.popleft()
             decoder.feed(direction, last, data, out)
+            if self._writing is not None:  # the packet's writes, with its exchange
+                if decoder.last is not None:
+                    decoder.last.writes = self._writing
+                self._writing = None
             if out:
                 self._take(out)
                 out.clear()
@@ -1016,8 +1119,7 @@ class FieldBus:
         servos, facts = self.servos, self._facts
         for fact in decoded:
             if isinstance(fact, Written):
-                self._recorded_write(fact, self._writes)
-                continue
+                continue  # to _recorded_write instead, by the decoder
             servo = servos.get(fact.servo_id)
             if servo is None:
                 self.strangers[fact.servo_id] += 1
@@ -1038,13 +1140,19 @@ class FieldBus:
                 servo.silent_at = fact.t
             facts.append(fact)
 
-    def _recorded_write(self, fact: Written, writes: _Writes) -> None:
-        ids = list(self.servos) if fact.servo_id == BROADCAST_ID else [fact.servo_id]
-        for sid in ids:
-            servo = self.servos.get(sid)
-            if servo is not None:
-                for name, value in _values(servo.model, fact.instruction, fact.start, fact.data):
-                    writes.recorded(fact.t, sid, name, value)
+    def _recorded_write(self, t: float, inst: int, entries: list[tuple[int, int, bytes]]) -> None:
+        """Keep what a recorded packet writes for comparison, and for its exchange (made
+        once the packet is decoded: :meth:`_read_to` hands them over)."""
+        kept: list[tuple[tuple[int, str], _Recorded]] = []
+        self._writing = kept
+        recorded, servos = self._writes.recorded, self.servos
+        for one, start, data in entries:
+            for sid in list(servos) if one == BROADCAST_ID else (one,):
+                servo = servos.get(sid)
+                if servo is not None:
+                    for name, a, b, signed in _plan(servo.model, inst, start, len(data)):
+                        value = int.from_bytes(data[a:b], "little", signed=signed) if b else 1
+                        kept.append(recorded(t, sid, name, value))
 
     def _move(self, t: float) -> None:
         """The chain's mover: the recording applied up to bus time ``t`` (module doc)."""
@@ -1067,6 +1175,12 @@ class FieldBus:
 
     def _replayed(self, chain: ServoChain, t: float, packets: Sequence[Packet]) -> None:
         """The chain's hook: each register the replay writes, compared with the recording."""
+        matched, self._matched = self._matched, None
+        if matched is not None and matched.writes:
+            # The recording's very packet, within the window: every register agrees.
+            self._writes.agreed(t, matched.writes)
+            return
+        servos, written = self.servos, self._writes.written
         for packet in packets:
             inst = packet.instruction
             if inst not in _WRITES and inst not in _OTHER_WRITES:
@@ -1075,42 +1189,36 @@ class FieldBus:
                 self.writes_past_end += 1  # nothing recorded to compare with
                 continue
             for sid, start, data in packet_writes(packet):
-                ids = list(self.servos) if sid == BROADCAST_ID else [sid]
-                for one in ids:
-                    servo = self.servos.get(one)
-                    if servo is None:
-                        continue
-                    for name, value in _values(servo.model, inst, start, data):
-                        self._writes.written(t, one, name, value)
+                for one in list(servos) if sid == BROADCAST_ID else (sid,):
+                    servo = servos.get(one)
+                    if servo is not None:
+                        for name, a, b, signed in _plan(servo.model, inst, start, len(data)):
+                            value = int.from_bytes(data[a:b], "little", signed=signed) if b else 1
+                            written(t, one, name, value)
 
 
 _Plan = tuple[tuple[str, int, int, bool], ...]
 _PLANS: dict[tuple[str, int, int, int], _Plan] = {}
 
 
-def _values(model: ServoModel, instruction: int, start: int, data: bytes) -> list[tuple[str, int]]:
-    """The registers a write sets and their values (``(name, 1)`` for a Reboot and the like)."""
-    key = (model.name, instruction, start, len(data))
-    plan = _PLANS.get(key)
-    if plan is None:
-        plan = _plan(model, instruction, start, len(data))
-        if len(_PLANS) < 4096:
-            _PLANS[key] = plan
-    return [
-        (name, int.from_bytes(data[a:b], "little", signed=signed) if b else 1)
-        for name, a, b, signed in plan
-    ]
-
-
 def _plan(model: ServoModel, instruction: int, start: int, length: int) -> _Plan:
-    """Per register a write sets: its name, where its bytes lie in the data, its sign."""
+    """Per register a write sets: its name, where its bytes lie in the data (``0, 0``:
+    none, for a Reboot and the like: value 1), its sign."""
+    key = (model.name, instruction, start, length)
+    plan = _PLANS.get(key)
+    if plan is not None:
+        return plan
     other = _OTHER_NAMES.get(instruction)
-    if other is not None:
-        return ((other, 0, 0, False),)
     regs = _registers(model, start, length)
-    if not regs:  # no whole register: the bytes as written
-        return ((f"@{start}", 0, length, False),)
-    return tuple((r.name, r.address - start, r.end - start, r.signed) for r in regs)
+    if other is not None:
+        plan = ((other, 0, 0, False),)
+    elif not regs:  # no whole register: the bytes as written
+        plan = ((f"@{start}", 0, length, False),)
+    else:
+        plan = tuple((r.name, r.address - start, r.end - start, r.signed) for r in regs)
+    if len(_PLANS) < 4096:
+        _PLANS[key] = plan
+    return plan
 
 
 def _ids(first: Mapping[int, float], shown: int = 6) -> str:
