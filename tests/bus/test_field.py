@@ -278,6 +278,7 @@ def test_a_replayed_scheduler_reads_the_recorded_positions_at_their_times(
         assert _positions(again) == _positions(then)
     # Every exchange was the recording's, every goal written agrees with it.
     assert played.paced == played.packets == sum(d == "tx" for d, _, _ in events)
+    assert played.reused > len(cycles)  # the cycle's reads: answered with the recorded bytes
     assert played.writes_compared > 40 * len(cycles)
     assert played.mismatched == 0
     assert "0 differing" in played.describe()

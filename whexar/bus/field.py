@@ -54,7 +54,10 @@ sent too — the same bytes, the first within ``write_window_s`` of ``t`` (:meth
 lasts until then (at least the emulator's time for it): the replayed bus keeps the
 robot's cycle times, its USB latency and its timeouts included, so the actors' timers
 fall where they fell on the robot. Any other packet takes the emulator's time. Nothing
-waits for a packet the recording does not have.
+waits for a packet the recording does not have. Such a packet that reads only measured
+registers (or pings), answered whole on the robot, gets the very bytes the robot's
+servos sent: what the emulator would build from the same values, its CRCs included,
+and the two thirds of a cycle's work the emulator spends on a read, saved.
 
 **Writes compared** (:class:`WriteMismatch`). Each register the replay writes to a
 servo is compared with what the recording wrote to the same servo and register within
@@ -164,6 +167,7 @@ _MUST_ANSWER: Final = frozenset(
 unless it is 0, which the scheduler never sets): a timeout on one names a silent servo.
 Not the writes: at Status Return Level 1 a live servo leaves them unanswered."""
 _FAST: Final = frozenset({Instruction.FAST_SYNC_READ, Instruction.FAST_BULK_READ})
+_READS: Final = _FAST | {Instruction.READ, Instruction.SYNC_READ, Instruction.BULK_READ}
 _WRITES: Final = frozenset(
     {Instruction.WRITE, Instruction.REG_WRITE, Instruction.SYNC_WRITE, Instruction.BULK_WRITE}
 )
@@ -234,6 +238,9 @@ class _Asked:
     """Servo → (start, length)."""
     must_answer: bool
     """A live servo answers it (:data:`_MUST_ANSWER`): a timeout names the one waited for."""
+    measured: bool
+    """It reads only what the servos measure (or a Ping): replayed at the same moment, it
+    is answered as it was on the recording (:meth:`FieldBus.pace`)."""
 
 
 @dataclass(slots=True)
@@ -261,7 +268,15 @@ def _asked(p: Packet) -> _Asked:
     except PacketError:
         pass
     spans = {sid: (start, length) for sid, start, length in order}
-    return _Asked(inst, p.id, order, spans, inst in _MUST_ANSWER)
+    measured = inst == Instruction.PING or (
+        inst in _READS
+        and bool(order)
+        and all(
+            length > 0 and any(a <= start and start + length <= b for a, b in _MEASURED)
+            for _, start, length in order
+        )
+    )
+    return _Asked(inst, p.id, order, spans, inst in _MUST_ANSWER, measured)
 
 
 def packet_writes(packet: Packet) -> list[tuple[int, int, bytes]]:
@@ -314,6 +329,12 @@ class Exchange:
     """The registers it writes, as :class:`FieldBus` keeps them for comparison."""
     began: float | None = None
     """When it began (:meth:`FieldBus.pace` works it out once)."""
+    asked: _Asked | None = None
+    """What it asked, if it expects an answer."""
+    reply: bytes | None = None
+    """Every byte read for it."""
+    timed_out: bool = False
+    """The SDK gave up waiting for some of its reply."""
 
 
 WriteSink = Callable[[float, int, list[tuple[int, int, bytes]]], None]
@@ -374,15 +395,18 @@ class BusDecoder:
         elif direction == "timeout":
             self._flush(out)
             self._timed_out(t, out)
-            if self._exchange is not None and t > self._exchange.end:
-                self._exchange.end = t
+            exchange = self._exchange
+            if exchange is not None:
+                exchange.timed_out = True
+                if t > exchange.end:
+                    exchange.end = t
 
     def close(self, out: list[Fact]) -> None:
         """The events are over: decode what was read for the last request."""
         self._flush(out)
 
     def _sent(self, t: float, data: bytes, out: list[Fact]) -> None:
-        opened = False
+        opened: _Asked | None = None
         for p in self._tx.feed(data):
             if p.is_status:
                 continue
@@ -407,7 +431,7 @@ class BusDecoder:
                 if key:
                     self._asked[key] = asked
             self._request = _Request(asked)
-            opened = True
+            opened = asked
         if self._tx.pending:
             self._tx.reset()
         last = self.last
@@ -415,9 +439,10 @@ class BusDecoder:
         self.last = exchange
         if self.exchanges is not None:
             self.exchanges.append(exchange)
-        if opened:
+        if opened is not None:
+            exchange.asked = opened
             self._exchange = exchange
-        self._reading = opened
+        self._reading = opened is not None
 
     def _flush(self, out: list[Fact]) -> None:
         chunks = self._chunks
@@ -429,7 +454,11 @@ class BusDecoder:
         if request is None:
             self.strays += 1
             return
-        t = self._exchange.end if self._exchange is not None else -math.inf
+        exchange = self._exchange
+        t = -math.inf
+        if exchange is not None:
+            t = exchange.end
+            exchange.reply = data
         statuses = _statuses(data, self._statuses)
         if statuses is None:  # not whole packets back to back: the decoder's patient way
             statuses = [(p.id, p.error or 0, p.params) for p in self._rx.feed(data) if p.is_status]
@@ -689,6 +718,11 @@ class FieldServo(VirtualServo):
         """The Alert bit of the last recorded status."""
         return self.alert
 
+    @property
+    def booting_until(self) -> float:
+        """When the boot after the last reboot the replay made ends."""
+        return self._ready_at
+
     def booting(self, t: float) -> bool:
         """Silent at ``t``: booting after a reboot, recorded silent, or stale (module doc)."""
         # Asked of every servo for every packet: the common case in one chained test.
@@ -875,9 +909,10 @@ class _Writes:
 # --------------------------------------------------------------------------- the bus
 
 
-Pacer = Callable[[bytes, float], "float | None"]
-"""``(request, t) -> end``: when the recording's exchange of the same packet was over, if
-the replay's one at ``t`` is the recording's (:meth:`FieldBus.pace`)."""
+Pacer = Callable[[bytes, float], "tuple[float, bytes | None] | None"]
+"""``(request, t) -> (end, reply)``: when the recording's exchange of the same packet was
+over, if the replay's at ``t`` is that one, and its recorded reply if that is the answer
+(:meth:`FieldBus.pace`)."""
 
 
 class _PacedChain(ServoChain):
@@ -888,11 +923,21 @@ class _PacedChain(ServoChain):
     pacer: Pacer | None = None
 
     def transact(self, request: bytes, t: float) -> Transaction:
-        end = None if self.pacer is None else self.pacer(bytes(request), t)
-        if end is None or end <= t:
+        paced = None if self.pacer is None else self.pacer(bytes(request), t)
+        if paced is None or paced[0] <= t:
             return super().transact(request, t)
-        tx = super().transact(request, end)
+        end, reply = paced
         wait = end - t
+        if reply is not None:
+            # What the servos measured, asked when the robot asked it: its very answer
+            # (what the emulator would build again from the recorded values), not executed.
+            self.advance(end)
+            stats = self.stats
+            stats.requests += 1
+            stats.bytes_in += len(request)
+            stats.bytes_out += len(reply)
+            return Transaction(bytes(request), reply, wait, (), ((len(reply), wait),))
+        tx = super().transact(request, end)
         if wait <= tx.cost_s:
             return tx
         later = wait - tx.cost_s
@@ -929,6 +974,8 @@ class FieldBus:
         """No packet was paced yet: the first may wait for the recording's bus to start."""
         self.paced = 0
         """Exchanges that took the recording's time (:meth:`pace`)."""
+        self.reused = 0
+        """Of those, the reads answered with the recorded reply itself (:meth:`pace`)."""
         self._matched: Exchange | None = None
         """The recorded exchange the transaction under way is (:meth:`pace`)."""
         self._writing: list[tuple[tuple[int, str], _Recorded]] | None = None
@@ -1016,8 +1063,8 @@ class FieldBus:
         to = f" (to {end:.3f} s)" if end is not None else ""
         head = (
             f"played back by time: {self.packets} recorded packets{to}, {self.paced} "
-            f"exchanges at their recorded times; {self.writes_compared} writes compared, "
-            f"{self.mismatched} differing"
+            f"exchanges at their recorded times ({self.reused} answered as recorded); "
+            f"{self.writes_compared} writes compared, {self.mismatched} differing"
         )
         if self.mismatched:
             counts = self.mismatch_counts.most_common()
@@ -1043,12 +1090,12 @@ class FieldBus:
 
     # ------------------------------------------------------------------ the chain's calls
 
-    def pace(self, request: bytes, t: float) -> float | None:
+    def pace(self, request: bytes, t: float) -> tuple[float, bytes | None] | None:
         """When the recording's exchange of ``request`` was over, if the replay's at bus
-        time ``t`` is that one: the first the recording sent within ``write_window_s`` of
+        time ``t`` is that one — the first the recording sent within ``write_window_s`` of
         ``t`` (for the replay's first packet, sent before the recording's bus started:
-        whenever it did). Every recorded packet up to it is passed; ``None``: the
-        recording has none there."""
+        whenever it did) — and its recorded reply, if that is the answer (:meth:`_answer`).
+        Every recorded packet up to it is passed; ``None``: the recording has none there."""
         exchanges = self._exchanges
         self._matched = None
         w = self.write_window_s
@@ -1069,8 +1116,28 @@ class FieldBus:
                     exchanges.popleft()
                 self.paced += 1
                 self._matched = exchange
-                return exchange.end
+                return exchange.end, self._answer(exchange)
         return None
+
+    def _answer(self, exchange: Exchange) -> bytes | None:
+        """The recorded reply of ``exchange`` if it is the replay's answer: it asked only
+        what the servos measure, was answered whole, and no servo asked is booting in the
+        replay alone (after a reboot the recording did not make)."""
+        asked, reply = exchange.asked, exchange.reply
+        if asked is None or not asked.measured or reply is None or exchange.timed_out:
+            return None
+        chain = self.chain
+        faults = chain.faults
+        if len(chain.hooks) != 1 or faults.corrupt_rate or faults.drop_rate or faults.tx_fail:
+            return None  # someone else's hook or faults: the emulator's way, every byte
+        servos, end = self.servos, exchange.end
+        for sid, _, _ in asked.order:
+            servo = servos.get(sid)
+            if servo is not None and servo.booting_until > end:
+                return None
+        self._play.reads.fresh += len(asked.order)
+        self.reused += 1
+        return reply
 
     def _began(self, exchange: Exchange) -> float:
         """When a recorded exchange began: as stamped, or — stamped once over, by an
