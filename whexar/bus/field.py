@@ -56,8 +56,8 @@ robot's cycle times, its USB latency and its timeouts included, so the actors' t
 fall where they fell on the robot. Any other packet takes the emulator's time. Nothing
 waits for a packet the recording does not have. Such a packet that reads only measured
 registers (or pings), answered whole on the robot, gets the very bytes the robot's
-servos sent: what the emulator would build from the same values, its CRCs included,
-and the two thirds of a cycle's work the emulator spends on a read, saved.
+servos sent: what the emulator would build again from the same values, CRCs and all,
+without the emulator's work of building them.
 
 **Writes compared** (:class:`WriteMismatch`). Each register the replay writes to a
 servo is compared with what the recording wrote to the same servo and register within

@@ -31,6 +31,7 @@ SUITES: dict[str, str] = {
     "cycle": "CPU per control cycle of the locomotion stack (six legs and the coordinator)",
     "sim": "the simulated WHexaR against real time; CPU per bus cycle by part",
     "record": "what recording costs the runtime: CPU overhead, a cycle's wait, file size",
+    "fieldbus": "a field log's servo bus played back by time: replay speed, cost per transaction",
     "campaign": "a campaign on 2 workers against 1; what Ray adds to a run",
 }
 """The suites, each a module of :mod:`whexar.bench` with a ``run(progress)``."""
