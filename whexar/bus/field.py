@@ -117,6 +117,7 @@ __all__ = [
     "WRITE_WINDOW_S",
     "Answered",
     "BusDecoder",
+    "Exchange",
     "Fact",
     "FieldBus",
     "FieldServo",
@@ -125,7 +126,9 @@ __all__ = [
     "WriteMismatch",
     "Written",
     "decode",
+    "expects_answer",
     "field_chain",
+    "packet_writes",
 ]
 
 STALE_AFTER_S: Final = 1.0
@@ -383,7 +386,8 @@ class BusDecoder:
         if direction == "rx":
             self._chunks.append(data)
             exchange = self._exchange
-            # Read after a packet written mid-reply: the SDK reading out a reply all there.
+            # What is read after a packet written mid-reply (a goal write riding on the
+            # read) was all there already: the SDK reading it out does not end the exchange.
             if self._reading and exchange is not None:
                 if exchange.first_read is None:
                     exchange.first_read = t
