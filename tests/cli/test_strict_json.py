@@ -30,6 +30,7 @@ import whexar.campaign
 from whexar.bench import bus as bus_bench
 from whexar.bench import campaign as campaign_bench
 from whexar.bench import cycle as cycle_bench
+from whexar.bench import fieldbus as fieldbus_bench
 from whexar.bench import kin as kin_bench
 from whexar.bench import median_seconds
 from whexar.bench import record as record_bench
@@ -342,6 +343,19 @@ def test_bench_record(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFix
         replay_bench, "measure", functools.partial(replay_bench.measure, seconds=0.5, repeats=1)
     )
     run_json(["bench", "record", "--json"], capsys)
+
+
+@covers("bench", "fieldbus")
+@pytest.mark.slow
+def test_bench_fieldbus(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(
+        fieldbus_bench,
+        "measure",
+        functools.partial(fieldbus_bench.measure, seconds=0.5, repeats=1),
+    )
+    run_json(["bench", "fieldbus", "--json"], capsys)
 
 
 @covers("bench", "bus")
