@@ -254,6 +254,13 @@ def test_log_info(simulated: tuple[Path, str], capsys: pytest.CaptureFixture[str
     assert info["complete"] is True
 
 
+@covers("log", "diff")
+def test_log_diff(simulated: tuple[Path, str], capsys: pytest.CaptureFixture[str]) -> None:
+    code, report = run_json(["log", "diff", str(simulated[0]), str(simulated[0]), "--json"], capsys)
+    assert code == 0
+    assert report["agrees"] is True
+
+
 @covers("replay")
 def test_replay_that_stops_before_its_clock_starts(
     late_start: Path, capsys: pytest.CaptureFixture[str]

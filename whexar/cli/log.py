@@ -5,8 +5,9 @@ duration, messages per channel and type with their rates and longest gaps, event
 level and the errors, and whether the file is complete or where its readable part ends.
 ``whexar log recover LOG [-o OUT]`` rewrites the readable part of a file that has no
 footer (a killed recording) as a complete file, by default ``LOG``'s name with
-``.recovered.mcap``, and says how much it saved. A file that is not a recording, or
-cannot be read, is bad input (exit 2).
+``.recovered.mcap``, and says how much it saved. ``whexar log diff A B`` compares two
+recordings by time (:mod:`whexar.record.diff`) and exits 1 where they differ beyond
+tolerance. A file that is not a recording, or cannot be read, is bad input (exit 2).
 """
 
 from __future__ import annotations
@@ -45,11 +46,38 @@ def _recover(args: argparse.Namespace) -> int:
     return 0
 
 
+def _diff(args: argparse.Namespace) -> int:
+    from whexar.cli.replay import tolerances_of
+    from whexar.record.diff import diff_recordings
+
+    report = diff_recordings(args.first, args.second, tolerances_of(args))
+    plots = []
+    if args.report is not None:
+        from whexar.record.diff_plots import write_diff_plots
+
+        plots = write_diff_plots(
+            args.first, args.second, args.report, report, labels=(args.first.name, args.second.name)
+        )
+    if args.json:
+        print_json({"first": str(args.first), "second": str(args.second), **report.to_json()})
+    else:
+        w = report.tolerances.window_s
+        verdict = "agree within tolerance" if report.agrees else "differ"
+        print(f"whexar log diff: {args.first} against {args.second}")
+        print(f"  compared      {report.compared} samples by time (window {w:g} s): they {verdict}")
+        table = report.table(all_rows=args.all)
+        if table.count("\n") > 0 or args.all:
+            print("  " + table.replace("\n", "\n  "))
+        if plots:
+            print(f"report: {len(plots)} plots in {args.report}")
+    return 0 if report.agrees else 1
+
+
 def add_commands(commands: Commands) -> None:
     """Add this group's commands to the ``whexar`` command table."""
     log = commands.add_parser(
         "log",
-        help="look at recordings (MCAP): info, recover",
+        help="look at recordings (MCAP): info, recover, diff",
         description="Look at whexar's recordings (MCAP files) and mend them.",
     )
     sub = log.add_subparsers(dest="log_command", required=True, metavar="COMMAND")
@@ -78,3 +106,22 @@ def add_commands(commands: Commands) -> None:
         help="write to OUT (default: LOG's name with .recovered.mcap)",
     )
     recover.set_defaults(handler=_recover)
+    diff = sub.add_parser(
+        "diff",
+        help="compare two recordings by time: every field within its tolerance, events in order",
+        description="Compare two recordings (the original and a replay of it, or two runs) "
+        "as signals: every field of every state message against the other's samples of the "
+        "same key within a time window, with an absolute tolerance per kind (angles, "
+        "lengths, currents…); events, step commands and swing ends matched by kind and "
+        "order. Prints the fields beyond tolerance (all with --all); exit status 1 when "
+        "any is.",
+    )
+    diff.add_argument("first", type=Path, metavar="A", help="the first recording (.mcap)")
+    diff.add_argument("second", type=Path, metavar="B", help="the second recording (.mcap)")
+    from whexar.cli.replay import add_tolerance_options
+
+    add_tolerance_options(diff)
+    diff.add_argument("--all", action="store_true", help="every field, not only those beyond")
+    diff.add_argument("--report", type=Path, metavar="DIR", help="draw both runs into DIR")
+    diff.add_argument("--json", action="store_true", help="print the report as JSON")
+    diff.set_defaults(handler=_diff)

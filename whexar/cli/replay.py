@@ -35,9 +35,12 @@ from whexar.cli.common import (
     tcp_port,
     tolerance,
 )
+from whexar.cli.run import assignment
+from whexar.errors import UsageError
 from whexar.runtime.clock import monotonic
 
 if TYPE_CHECKING:
+    from whexar.record.diff import Tolerances
     from whexar.record.replay import ReplayResult
 
 FLOAT_TOLERANCE: Final = 1e-9
@@ -48,6 +51,53 @@ LOG_EVERY_S: Final = 10.0
 """Replayed seconds between two progress lines when stderr is no terminal."""
 BAR: Final = 24
 """Width of the progress bar, in characters."""
+
+
+def tolerance_setting(value: str) -> tuple[str, float]:
+    """An argument type: ``NAME=VALUE`` of a tolerance (``angle_rad=0.05``)."""
+    name, sep, text = value.partition("=")
+    try:
+        number = float(text)
+    except ValueError:
+        number = math.nan
+    if not sep or not math.isfinite(number) or number < 0:
+        raise argparse.ArgumentTypeError(
+            f"{value!r}: expected NAME=VALUE with a number ≥ 0, e.g. angle_rad=0.05"
+        )
+    return name.strip(), number
+
+
+def add_tolerance_options(cmd: argparse.ArgumentParser) -> None:
+    """``--window`` and ``--tol`` of the time-aligned comparison (replay, log diff)."""
+    cmd.add_argument(
+        "--window",
+        type=float,
+        metavar="S",
+        help="how far apart in time two samples of one signal may be (default 0.02 s: about "
+        "two bus cycles)",
+    )
+    cmd.add_argument(
+        "--tol",
+        type=tolerance_setting,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="an absolute tolerance of the time-aligned comparison (repeatable): angle_rad, "
+        "length_m, current_a, speed_m_s, event_s, … (defaults: docs/replay.md)",
+    )
+
+
+def tolerances_of(args: argparse.Namespace) -> Tolerances:
+    """The tolerances ``--window`` and ``--tol`` ask for; an unknown name is a usage error."""
+    from whexar.record.diff import DEFAULT_TOLERANCES
+
+    settings = dict(args.tol)
+    if args.window is not None:
+        settings["window_s"] = args.window
+    try:
+        return DEFAULT_TOLERANCES.with_(settings)
+    except KeyError as exc:
+        raise UsageError(f"--tol {exc.args[0]}") from None
 
 
 class Progress(StatusLine):
@@ -109,6 +159,11 @@ def summary(result: ReplayResult) -> dict[str, Any]:
         },
         "config_changes": result.config_changes,
         "damage": result.damage,
+        "clock": result.clock,
+        "agrees": result.agrees,
+        "ended_early": result.ended_early,
+        "report": None if result.report is None else result.report.to_json(),
+        "uncompared": result.uncompared,
     }
 
 
@@ -118,6 +173,12 @@ def summary_text(result: ReplayResult) -> str:
         f"whexar replay: {result.path}",
         f"  replayed      {result.duration_s:.3f} of {result.recorded_s:.3f} s in "
         f"{result.wall_s:.2f} s ({result.realtime_factor:.1f}× real time)",
+        "  devices       "
+        + (
+            "by time (a log of a real clock)"
+            if result.clock == "real"
+            else "byte for byte (a log of virtual time)"
+        ),
     ]
     for channel, count in result.fed.items():
         lines.append(f"  fed           {channel}: {count} recorded messages")
@@ -127,7 +188,30 @@ def summary_text(result: ReplayResult) -> str:
         lines.append(f"  config        {change}")
     if result.damage:
         lines.append(f"  recording     {result.damage}")
-    if result.checked:
+    if result.ended_early:
+        lines.append(f"  ended early   {result.ended_early}")
+    report = result.report
+    if result.checked and report is not None:
+        w = report.tolerances.window_s
+        if report.agrees:
+            lines.append(
+                f"  check         by time (window {w:g} s): {report.compared} samples agree "
+                "with the recording within tolerance"
+            )
+        else:
+            first = report.first_beyond
+            lines.append(f"  check         by time (window {w:g} s): {report.compared} samples, ")
+            if first is not None:
+                lines[-1] += (
+                    f"the first lasting difference at t = {first.first_beyond_t:.3f} s on "
+                    f"{first.channel} {first.message}.{first.field} ({first.first_beyond_key})"
+                )
+            else:
+                lines[-1] += "events or samples without a match"
+            lines.append("  " + report.table().replace("\n", "\n  "))
+        if result.uncompared:
+            lines.append(f"  not compared  {', '.join(result.uncompared)} (in one run only)")
+    elif result.checked:
         if result.divergence is None:
             lines.append(f"  check         {result.compared} messages agree with the recording")
         else:
@@ -147,6 +231,10 @@ def _replay(args: argparse.Namespace) -> int:
         print(f"live view: {live.url} (Foxglove: open a WebSocket connection)", file=sys.stderr)
     speed = None if args.fast else args.speed or (1.0 if live is not None else None)
     progress = Progress()
+    record = args.record
+    if args.report is not None and record is None:
+        args.report.mkdir(parents=True, exist_ok=True)
+        record = args.report / "replay.mcap"  # the report draws the replay from its recording
     try:
         result = replay(
             args.log,
@@ -155,22 +243,33 @@ def _replay(args: argparse.Namespace) -> int:
             speed=speed,
             check=args.check,
             config=args.config,
-            record=args.record,
+            record=record,
             live=live,
             progress=None if args.json else progress,
             tolerance=args.tolerance,
+            by_time=args.by_time,
+            tolerances=tolerances_of(args),
+            graph=args.graph,
+            sets=args.set,
         )
     finally:
         progress.finish()
         if live is not None:
             live.close()
+    plots = []
+    if args.report is not None and record is not None and result.recording is not None:
+        from whexar.record.diff_plots import write_diff_plots
+
+        plots = write_diff_plots(args.log, result.recording, args.report, result.report)
     if args.json:
         print_json(summary(result))
     else:
         print(summary_text(result), flush=True)
-        if args.record is not None:
-            print(f"recording: {args.record}", flush=True)
-    return 1 if result.divergence is not None else 0
+        if record is not None:
+            print(f"recording: {record}", flush=True)
+        if plots:
+            print(f"report: {len(plots)} plots in {args.report}", flush=True)
+    return 0 if result.agrees else 1
 
 
 def add_commands(commands: Commands) -> None:
@@ -216,6 +315,35 @@ def add_commands(commands: Commands) -> None:
         type=Path,
         metavar="FILE",
         help="replay with this robot configuration instead of the recorded one",
+    )
+    cmd.add_argument(
+        "--by-time",
+        action="store_true",
+        help="compare by time, as a log of a real clock is (a report of every field, not "
+        "the first difference), also for a log of virtual time",
+    )
+    add_tolerance_options(cmd)
+    cmd.add_argument(
+        "--graph",
+        type=Path,
+        metavar="FILE",
+        help="replay this wiring file instead of the recorded one (an added reflex); its "
+        "device actors are pointed at the recording",
+    )
+    cmd.add_argument(
+        "--set",
+        type=assignment,
+        action="append",
+        default=[],
+        metavar="ACTOR.PARAM=VALUE",
+        help="change a parameter of one actor for the replay (repeatable), as whexar run --set",
+    )
+    cmd.add_argument(
+        "--report",
+        type=Path,
+        metavar="DIR",
+        help="draw the recorded against the replayed joints and events into DIR (the replay "
+        "is recorded there too, unless --record)",
     )
     cmd.add_argument("--record", type=Path, metavar="FILE.mcap", help="record the replay into FILE")
     cmd.add_argument(

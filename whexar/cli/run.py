@@ -233,7 +233,12 @@ def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> 
     else:
         path = args.record or default_recording(args.graph.stem)
     config, cfg = _robot_config(graph)
-    metadata = {"kind": "run", "graph": str(args.graph), "command": " ".join(sys.argv)}
+    metadata = {
+        "kind": "run",
+        "clock": "virtual" if args.virtual else "real",
+        "graph": str(args.graph),
+        "command": " ".join(sys.argv),
+    }
     if args.duration is not None:
         metadata["duration_s"] = repr(float(args.duration))
     wiring = {f"wiring{args.graph.suffix}": args.graph.read_bytes()}

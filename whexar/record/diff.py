@@ -22,11 +22,14 @@ message sequences:
 
 The result (:class:`DiffReport`) is a table, not a first difference: per channel
 and field, how many samples were compared, the largest and the mean difference,
-the tolerance, how many were beyond it and the first time one was (naming the
-key: the joint, the leg); per event kind, the counts on both sides and the first
-one unmatched. :attr:`DiffReport.agrees` is the verdict. The runtime's own
-lifecycle events (an actor starting, stopping) are not compared: a replay starts
-its actors its own way.
+the tolerance, how many were beyond it, how many of those for longer than
+``persist_s`` in a row, and when the first such lasting difference began (naming
+the key: the joint, the leg); per event kind, the counts on both sides and the
+first one unmatched. A blip — beyond for a cycle or two, a discrete change a cycle
+apart — is counted but does not make two runs disagree. :attr:`DiffReport.agrees`
+is the verdict. The runtime's own lifecycle events (an actor starting, stopping)
+are not compared: a replay starts its actors its own way; nor are the process's
+statistics (bus and sensor-link counters per second).
 
 Both runs are read as they go: :class:`TimeDiff` keeps, per key, only the samples
 within a window of the instant being compared, so memory stays bounded on an
@@ -36,6 +39,8 @@ or from a recording and a live replay (``whexar replay --check`` on a field log)
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 import os
 from collections import deque
@@ -52,6 +57,8 @@ from whexar.runtime.messages import (
     ActorStopped,
     Event,
     Message,
+    StopRequested,
+    TickOverrun,
 )
 
 if TYPE_CHECKING:
@@ -66,14 +73,26 @@ __all__ = [
     "Tolerances",
 ]
 
-LIFECYCLE: Final = (ActorStarting, ActorReady, ActorStopped, ActorRestarted, ActorFailed)
-"""Runtime events about the process, not the robot: not compared."""
+LIFECYCLE: Final = (
+    ActorStarting,
+    ActorReady,
+    ActorStopped,
+    ActorRestarted,
+    ActorFailed,
+    StopRequested,
+    TickOverrun,
+)
+"""Runtime events about the process, not the robot: not compared (a replay starts and
+stops its actors its own way, on a clock that never overruns). An escalation and a safe
+stop are compared: the robot stops for them."""
 _SKIPPED: Final = frozenset({"t", "source", "cycle", "seq", "missed"})
 """Fields that are no signal: the time, who said it, counters of the process."""
 _IDENTITY: Final = ("leg", "joint", "servo_id", "sensor", "link")
 """Fields that say what a message or an element is about: part of the key."""
 _DISCRETE: Final = frozenset({"StepCommand", "SwingEnded", "MotionCommand"})
 """Messages that are no state: matched by kind and order, as events are."""
+_STATISTICS: Final = frozenset({"BusStats", "SensorStats"})
+"""Counters of the process (cycles, bytes, retries per second): not the robot's signals."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +111,10 @@ class Tolerances:
     voltage_v: float = 0.3
     temperature_c: float = 2.0
     acceleration_g: float = 0.05
+    persist_s: float = 0.05
+    """How long a signal must stay beyond its tolerance to disagree: five bus cycles. A
+    discrete change a cycle apart (a foot down one cycle later, the margin at a tripod's
+    hand-over) is counted as a blip, not a difference."""
     time_s: float = 0.05
     ratio: float = 0.1
     """Progress through a step, the gait's phase (0…1)."""
@@ -148,6 +171,7 @@ _NAMED: Final[Mapping[str, str | tuple[str, ...]]] = {
     "foot": "length",
     "measured_foot": "length",
     "target": "length",
+    "start_t": "time",
     "progress": "ratio",
     "gait_phase": "phase",
     "load": "load",
@@ -162,6 +186,11 @@ def _kind(name: str, value: object, index: int | None = None) -> str:
         return "label"
     if isinstance(value, int):
         return "count"
+    return _number_kind(name, index)
+
+
+@functools.cache
+def _number_kind(name: str, index: int | None) -> str:
     named = _NAMED.get(name)
     if isinstance(named, tuple):
         return named[index] if index is not None and index < len(named) else "value"
@@ -179,6 +208,17 @@ Value = float | str | bool | None
 
 def _about(record: object) -> tuple[str, ...]:
     """What a message or an element is about, as key parts (``leg RF``, ``joint femur``)."""
+    ident = (type(record), *(getattr(record, name, None) for name in _IDENTITY))
+    found = _ABOUT.get(ident)
+    if found is None:
+        found = _ABOUT[ident] = _about_parts(record)
+    return found
+
+
+_ABOUT: dict[tuple[object, ...], tuple[str, ...]] = {}
+
+
+def _about_parts(record: object) -> tuple[str, ...]:
     parts: list[str] = []
     for name in _IDENTITY:
         value = getattr(record, name, None)
@@ -188,7 +228,7 @@ def _about(record: object) -> tuple[str, ...]:
             value = LEG_NAMES[value]
         elif name == "joint" and isinstance(value, int) and 0 <= value < len(JOINT_NAMES):
             value = JOINT_NAMES[value]
-        parts.append(f"{name} {value}")
+        parts.append(f"{'servo' if name == 'servo_id' else name} {value}")
     return tuple(parts)
 
 
@@ -262,6 +302,62 @@ def _difference(kind: str, a: Value, b: Value) -> float:
     return 0.0 if a == b else 1.0
 
 
+def _nearest(
+    kind: str,
+    value: Value,
+    t: float,
+    w: float,
+    held: tuple[float, Value] | None,
+    samples: deque[tuple[float, Value]],
+) -> float:
+    """How far ``value`` (at ``t``) is from the other run's signal within ``w`` of ``t``.
+
+    A number is compared with the signal drawn through the other run's samples (the one
+    held before the window, those in it, the first after it): over the window, that line
+    takes every value between its lowest and highest, so a difference of timing within
+    the window costs nothing and only a difference of value counts. Flags, labels and
+    counts are compared with each sample in the window (and the held one)."""
+    if not isinstance(value, float) or kind in ("count", "flag", "label"):
+        best = math.inf if held is None else _difference(kind, value, held[1])
+        for u, other in samples:
+            if u > t + w:
+                break
+            d = _difference(kind, value, other)
+            if d < best:
+                best = d
+        return best
+    period = 2 * math.pi if kind == "angle" else 1.0 if kind == "phase" else 0.0
+    points: list[tuple[float, float]] = []
+    for u, other in ((held,) if held is not None else ()) + tuple(samples):
+        if not isinstance(other, float) or math.isnan(other):
+            continue
+        if period and math.isfinite(other) and math.isfinite(value):
+            other = value + ((other - value + period / 2) % period - period / 2)
+        points.append((u, other))
+        if u > t + w:
+            break
+    if not points:
+        return math.inf
+    lo, hi = t - w, t + w
+    values: list[float] = []
+    for (u1, v1), (u2, v2) in itertools.pairwise(points):
+        if u2 < lo or u1 > hi:
+            continue
+        for edge in (lo, hi):  # where the line crosses the window's edges
+            if u1 < edge < u2 and math.isfinite(v1) and math.isfinite(v2):
+                values.append(v1 + (v2 - v1) * (edge - u1) / (u2 - u1))
+        if lo <= u1 <= hi:
+            values.append(v1)
+        if lo <= u2 <= hi:
+            values.append(v2)
+    if not values:  # the last sample is before the window: it holds
+        values.append(points[-1][1])
+    low, high = min(values), max(values)
+    if low <= value <= high:
+        return 0.0
+    return min(abs(value - low), abs(value - high))
+
+
 # --------------------------------------------------------------------------- the report
 
 
@@ -276,11 +372,16 @@ class FieldRow:
     tolerance: float
     compared: int = 0
     beyond: int = 0
+    """Samples beyond tolerance, blips included."""
+    lasting: int = 0
+    """Samples beyond tolerance for at least ``persist_s`` in a row (a discrete message:
+    any): what makes the field disagree."""
     largest: float = 0.0
     total: float = 0.0
     unmatched: int = 0
     """Samples of one run with nothing of the other near them."""
     first_beyond_t: float | None = None
+    """When the first lasting difference began."""
     first_beyond_key: str | None = None
     worst_key: str | None = None
 
@@ -291,7 +392,7 @@ class FieldRow:
 
     @property
     def agrees(self) -> bool:
-        return self.beyond == 0 and self.unmatched == 0
+        return self.lasting == 0 and self.unmatched == 0
 
 
 @dataclass
@@ -343,7 +444,7 @@ class DiffReport:
         )
         lines = [
             f"{'channel':<13}{'field':<34}{'compared':>9}{'largest':>11}{'mean':>11}"
-            f"{'tolerance':>11}{'beyond':>8}  first beyond"
+            f"{'tolerance':>11}{'beyond':>8}{'lasting':>8}  first lasting"
         ]
         for r in rows:
             first = (
@@ -354,7 +455,7 @@ class DiffReport:
             lines.append(
                 f"{r.channel:<13}{(r.message + '.' + r.field)[:33]:<34}{r.compared:>9}"
                 f"{_num(r.largest):>11}{_num(r.mean):>11}{_num(r.tolerance):>11}"
-                f"{r.beyond:>8}  {first}"
+                f"{r.beyond:>8}{r.lasting:>8}  {first}"
             )
         events = [e for e in self.events if all_rows or not e.agrees]
         if events:
@@ -384,6 +485,7 @@ class DiffReport:
                     "tolerance": r.tolerance,
                     "compared": r.compared,
                     "beyond": r.beyond,
+                    "lasting": r.lasting,
                     "unmatched": r.unmatched,
                     "largest": _finite(r.largest),
                     "mean": _finite(r.mean),
@@ -413,7 +515,7 @@ def _num(x: float) -> str:
 
 
 def _finite(x: float) -> float | None:
-    return x if math.isfinite(x) else None
+    return x if math.isfinite(x) else None  # strict JSON: no infinity (whexar._json)
 
 
 # --------------------------------------------------------------------------- the diff
@@ -430,6 +532,8 @@ class _Signal:
     held: tuple[float, Value] | None = None
     """The second run's last sample before the window: in force until the next."""
     held_first: tuple[float, Value] | None = None
+    beyond_since: float | None = None
+    """When the first run's samples began to be beyond tolerance, while they are."""
 
 
 class TimeDiff:
@@ -462,6 +566,8 @@ class TimeDiff:
         if isinstance(msg, LIFECYCLE):
             return
         name = type(msg).__name__
+        if name in _STATISTICS:
+            return
         if isinstance(msg, Event) or name in _DISCRETE:
             self._event(channel, msg, first)
             return
@@ -521,18 +627,33 @@ class TimeDiff:
 
     # ----------------------------------------------------------------- comparing
 
-    def _score(self, row: FieldRow, key: str, t: float, d: float) -> None:
+    def _score(
+        self, row: FieldRow, key: str, t: float, d: float, signal: _Signal | None = None
+    ) -> None:
         row.compared += 1
         self.compared += 1
         row.total += d if math.isfinite(d) else 0.0
         if d > row.largest:
             row.largest = d
             row.worst_key = key
-        if d > row.tolerance + 1e-12:
-            row.beyond += 1
-            if row.first_beyond_t is None or t < row.first_beyond_t:
-                row.first_beyond_t = t
-                row.first_beyond_key = key
+        if d <= row.tolerance + 1e-12:
+            if signal is not None:
+                signal.beyond_since = None
+            return
+        row.beyond += 1
+        if signal is not None:
+            # A signal beyond its tolerance for less than persist_s is a blip: a discrete
+            # change one cycle apart (a foot down a cycle later), counted, not a verdict.
+            since = signal.beyond_since
+            if since is None:
+                since = signal.beyond_since = t
+            if t - since + 1e-12 < self.tol.persist_s:
+                return
+        row.lasting += 1
+        start = t if signal is None or signal.beyond_since is None else signal.beyond_since
+        if row.first_beyond_t is None or start < row.first_beyond_t:
+            row.first_beyond_t = start
+            row.first_beyond_key = key
 
     def advance(self, t: float) -> None:
         """Both runs are fed up to ``t``: compare what lies a window behind it."""
@@ -555,20 +676,12 @@ class TimeDiff:
             # The other run's samples older than the window go, the last one kept held.
             while second and second[0][0] < t - w:
                 s.held = second.popleft()
-            best = math.inf
-            if s.held is not None:
-                best = _difference(kind, value, s.held[1])
-            for u, other in second:
-                if u > t + w:
-                    break
-                d = _difference(kind, value, other)
-                if d < best:
-                    best = d
+            best = _nearest(kind, value, t, w, s.held, second)
             if best == math.inf and s.held is None and not second:
                 row.unmatched += 1
                 continue
             s.held_first = (t, value)
-            self._score(row, s.name, t, best)
+            self._score(row, s.name, t, best, s)
         # What the second run said with no first-run sample anywhere near: unmatched,
         # unless the first run has held a value through it.
         while second and second[0][0] < frontier - w:

@@ -47,14 +47,17 @@ import tomllib
 from collections.abc import Callable, Generator, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final, TypeVar
+from typing import TYPE_CHECKING, Any, Final, Literal, TypeVar
 
 import anyio
 
+from whexar.bus.emulator.chain import SERVO_CHAIN
+from whexar.bus.field import FieldBus, field_chain
 from whexar.bus.replay import REPLAYED_BUS, BusReplay
 from whexar.config import RobotConfig, load_config
 from whexar.errors import UsageError
 from whexar.record.check import FLOAT_TOLERANCE, LATE_S, Checker, Comparison, Divergence, compare
+from whexar.record.diff import DEFAULT_TOLERANCES, DiffReport, TimeDiff, Tolerances
 from whexar.record.encoding import LinkBytes, RecordingError
 from whexar.record.reader import Recording
 from whexar.record.writer import (
@@ -65,12 +68,19 @@ from whexar.record.writer import (
 )
 from whexar.runtime.channels import ChannelStats
 from whexar.runtime.clock import monotonic, wait_until
-from whexar.runtime.devices import DEVICES, DeviceKind
+from whexar.runtime.devices import DEVICES
 from whexar.runtime.harness import Harness, RunResult, run_actors
 from whexar.runtime.messages import Message
+from whexar.runtime.schema import read_toml
 from whexar.runtime.streams import Dealer
-from whexar.runtime.wiring import EVENTS_CHANNEL
-from whexar.sensors.replay import REPLAYED_BOARD, REPLAYED_I2C, BoardReplay, I2CReplay
+from whexar.runtime.wiring import EVENTS_CHANNEL, set_param
+from whexar.sensors.replay import (
+    REPLAYED_BOARD,
+    REPLAYED_I2C,
+    BoardReplay,
+    I2CFieldReplay,
+    I2CReplay,
+)
 
 if TYPE_CHECKING:
     from whexar.record.writer import LiveSink
@@ -104,6 +114,21 @@ FED_ACTORS: Final = frozenset({"whexar.actors.commands:CommandSource"})
 """Actors left out of a replay: their channels are fed from the recording."""
 REPLAY_DEVICE: Final = "replay"
 """The name every played-back device is registered under."""
+Clock = Literal["virtual", "real"]
+"""The clock a recording was made on: virtual time (a simulation, a test, ``whexar run
+--virtual``, a replay) replays byte for byte; a real clock (the robot) by time."""
+
+
+def recorded_clock(rec: Recording) -> Clock:
+    """The clock ``rec`` was recorded on: its ``run`` metadata's ``clock``, or, in a
+    recording made before it was written, what its kind and command line say."""
+    run = rec.metadata.get("run", {})
+    clock = run.get("clock")
+    if clock in ("virtual", "real"):
+        return "real" if clock == "real" else "virtual"
+    if run.get("kind") == "run":
+        return "virtual" if "--virtual" in run.get("command", "").split() else "real"
+    return "virtual"
 
 
 # --------------------------------------------------------------------------- the replay
@@ -135,6 +160,22 @@ class ReplayResult:
     """Keys of the configuration replayed with that differ from the recorded one."""
     recording: Path | None = None
     """Where the replay itself was recorded, if it was."""
+    clock: Clock = "virtual"
+    """The clock the recording was made on: the devices played back byte for byte
+    (virtual) or by time (real)."""
+    report: DiffReport | None = None
+    """The time-aligned comparison (a log of a real clock checked, or ``by_time``)."""
+    ended_early: str | None = None
+    """Why the replay stopped before the end of the recording (or of ``stop``), if it did."""
+    uncompared: list[str] = field(default_factory=list)
+    """Channels one side has and the other not: not compared."""
+
+    @property
+    def agrees(self) -> bool:
+        """Nothing diverged (or everything within tolerance), and the replay reached its end."""
+        if self.ended_early is not None or self.divergence is not None:
+            return False
+        return self.report is None or self.report.agrees
 
     @property
     def realtime_factor(self) -> float:
@@ -214,10 +255,12 @@ def _config(
 
 
 def _replay_graph(
-    wiring: Mapping[str, Any], config: Path | None, cfg: RobotConfig
+    wiring: Mapping[str, Any], config: Path | None, cfg: RobotConfig, clock: Clock = "virtual"
 ) -> tuple[dict[str, Any], list[str], dict[str, str], dict[str, str]]:
     """The recorded wiring with each device link played back: the graph, the channels to
-    feed, actor name → the kind of link it owns, and played-back device → recorded one."""
+    feed, actor name → the kind of link it owns, and played-back device → recorded one.
+    On a log of a real clock the bus scheduler opens the recorded servos by time, an
+    emulated chain (``emulator:NAME``)."""
     graph = json.loads(json.dumps(wiring))  # a deep copy
     actors = []
     owners: dict[str, str] = {}
@@ -241,6 +284,8 @@ def _replay_graph(
             for key in emulator_only:
                 params.pop(key, None)
             played = f"{REPLAY_DEVICE}:{actor['name']}"
+            if clock == "real" and cls.endswith(":BusScheduler"):
+                played = f"{SERVO_CHAIN.scheme}:{actor['name']}"
             recorded = params.get(setting) or configured.get(cls)
             if recorded:
                 aliases[played] = str(recorded)
@@ -278,14 +323,22 @@ def replay(
     live: LiveSink | None = None,
     progress: Callable[[float, float], None] | None = None,
     tolerance: float = FLOAT_TOLERANCE,
+    by_time: bool = False,
+    tolerances: Tolerances = DEFAULT_TOLERANCES,
+    graph: str | Path | None = None,
+    sets: Iterable[tuple[str, object]] = (),
 ) -> ReplayResult:
     """Replay recording ``path`` (module docstring) and return what it did.
 
     ``speed``: replayed seconds per wall second from ``start`` on (``None``: as fast as
-    possible). ``check``: compare every published message with the recorded one and stop
-    at the first divergence (:attr:`ReplayResult.divergence`), floats within
-    ``tolerance`` (:func:`compare`). ``config``: the robot
-    configuration file to replay with instead of the recorded one. ``record``: an MCAP
+    possible). ``check``: compare the published messages with the recorded ones: on a
+    log of virtual time every message exactly, stopping at the first divergence
+    (:attr:`ReplayResult.divergence`; floats within ``tolerance``, :func:`compare`); on
+    a log of a real clock, or with ``by_time``, by time within ``tolerances``
+    (:attr:`ReplayResult.report`, :mod:`whexar.record.diff`). ``config``: the robot
+    configuration file to replay with instead of the recorded one; ``graph`` a wiring
+    file to replay instead of the recorded wiring (an added reflex); ``sets`` parameters
+    to change, ``("ACTOR.PARAM", value)`` as ``whexar run --set``. ``record``: an MCAP
     file to record the replay into; ``live`` a live view fed as a run's.
     ``progress(t, end)`` is called about every replayed second.
     """
@@ -293,7 +346,10 @@ def replay(
     path = Path(path)
     rec = Recording(path)
     rec.check_compatible()
-    wiring = _wiring(rec)
+    recorded_wiring = _wiring(rec)
+    wiring = recorded_wiring if graph is None else read_toml(graph)
+    clock = recorded_clock(rec)
+    timed = check and (clock == "real" or by_time)
     recorded_s, to_the_end = _end(rec)
     if start < 0 or (stop is not None and stop <= start):
         raise UsageError(f"--from {start:g} --to {stop}: the window must have 0 ≤ from < to")
@@ -307,7 +363,9 @@ def replay(
         contextlib.ExitStack() as on_exit,
     ):
         cfg_path, cfg, changes = _config(rec, Path(config) if config else None, Path(tmp))
-        graph, fed, owners, aliases = _replay_graph(wiring, cfg_path, cfg)
+        graph_doc, fed, owners, aliases = _replay_graph(wiring, cfg_path, cfg, clock)
+        for target, value in sets:
+            set_param(graph_doc, target, value, source=str(graph or path), option="--set")
         # The device links and the fed commands are read as the replay goes (module doc).
         reading = _Reading()
         dealer = Dealer(reading.guarded(_links(rec, owners, end, whole)))
@@ -323,27 +381,36 @@ def replay(
                 f"{path} holds no bytes of the device link of {', '.join(missing)} "
                 f"({', '.join(f'/links/{n}' for n in missing)}): it cannot be replayed"
             )
-        devices = _devices(owners, links, cfg)
-        checker = None
+        devices = _devices(owners, links, cfg, clock)
+        left_out = {a["name"] for a in recorded_wiring.get("actors", [])} - {
+            a["name"] for a in graph_doc["actors"]
+        }
+        recorded_channels = set(recorded_wiring.get("channels", {}))
+        replayed_channels = set(graph_doc.get("channels", {}))
+        uncompared = sorted((recorded_channels ^ replayed_channels) - set(fed))
+        compared_channels = sorted((recorded_channels & replayed_channels) - set(fed))
+        checker: Checker | TimeCheck | None = None
         if check:
-            left_out = {a["name"] for a in wiring.get("actors", [])} - {
-                a["name"] for a in graph["actors"]
-            }
-            expected = reading.guarded(_expected(rec, graph, fed, left_out))
+            expected = reading.guarded(_expected(rec, compared_channels, left_out, by_time=timed))
             # Where a damaged file is cut, the last instants are only partly there.
             cut = not to_the_end and end >= recorded_s
-            checker = Checker(expected, set(fed), start, end - LATE_S if cut else end, whole)
-            checker.comparison = Comparison(aliases, tolerance)
+            window = (start, end - LATE_S if cut else end)
+            skip = set(fed) | set(uncompared)
+            if timed:
+                checker = TimeCheck(expected, tolerances, skip, *window)
+            else:
+                checker = Checker(expected, skip, *window, whole)
+                checker.comparison = Comparison(aliases, tolerance)
         recorder = None
         if record is not None or live is not None:
-            recorder = _recorder(record, live, rec, graph, end)
+            recorder = _recorder(record, live, rec, graph_doc, end)
         observers = [o for o in (checker, recorder) if o is not None]
 
         fed_counts = dict.fromkeys(fed, 0)
 
         async def scenario(h: Harness) -> None:
             reading.stop = h.stop
-            if checker is not None:
+            if isinstance(checker, Checker):
                 checker.on_divergence = lambda: h.stop("replay diverged")
                 checker.now = h.now
             async with anyio.create_task_group() as tg:
@@ -361,7 +428,7 @@ def replay(
         try:
             with _registered(devices):
                 result = run_actors(
-                    graph,
+                    graph_doc,
                     duration=end,
                     scenario=scenario,
                     feeds=fed,
@@ -372,16 +439,17 @@ def replay(
         finally:
             if recorder is not None:
                 recorder.close()
+        report = checker.finish() if isinstance(checker, TimeCheck) else None
         wall_s = monotonic() - wall
         if reading.error is not None:
             raise reading.error
         # Stopped at a divergence, the rest of a long recording is not read to count it.
-        stopped = checker is not None and checker.divergence is not None
+        stopped = isinstance(checker, Checker) and checker.divergence is not None
         if stopped:
             dealer.close()
         described = {name: _describe(device, not stopped) for name, device in devices.items()}
     divergence = None
-    if checker is not None:
+    if isinstance(checker, Checker):
         divergence = checker.divergence
         if divergence is None:
             divergence = checker.left_over()
@@ -389,31 +457,91 @@ def replay(
             mismatch = _first_mismatch(name, device, start, end, whole)
             if mismatch is not None and (divergence is None or mismatch.t < divergence.t):
                 divergence = mismatch
+    stopped_at = checker.stopped_at if isinstance(checker, Checker) else math.inf
+    replayed = min(result.end_time, end, stopped_at)
+    ended_early = None
+    if divergence is None and (result.exit_code != 0 or result.end_time < end - 1e-9):
+        why = result.stop_reason or f"exit status {result.exit_code}"
+        ended_early = f"stopped at t = {result.end_time:.3f} s of {end:.3f} s: {why}"
     return ReplayResult(
         path=path,
-        duration_s=min(result.end_time, end, math.inf if checker is None else checker.stopped_at),
+        duration_s=replayed,
         recorded_s=recorded_s,
         wall_s=wall_s,
         run=result,
         fed=fed_counts,
         checked=check,
-        compared=0 if checker is None else checker.compared,
+        compared=(
+            0 if checker is None else report.compared if report is not None else checker.compared  # type: ignore[union-attr]
+        ),
         divergence=divergence,
         links=described,
         damage=None if rec.damage is None else rec.describe_end(),
         config_changes=changes,
         recording=None if recorder is None or record is None else recorder.path,
+        clock=clock,
+        report=report,
+        ended_early=ended_early,
+        uncompared=uncompared if check else [],
     )
 
 
+class TimeCheck:
+    """The runtime observer that compares what is published with the recording by time
+    (:class:`~whexar.record.diff.TimeDiff`): the recorded messages are read a window
+    ahead of what is published, and compared once both runs are past them."""
+
+    def __init__(
+        self,
+        expected: Iterator[tuple[str, Message]],
+        tolerances: Tolerances,
+        skip: set[str],
+        start: float,
+        stop: float,
+    ) -> None:
+        self._source = expected
+        self._next: tuple[str, Message] | None = next(expected, None)
+        self._skip = skip
+        self._start = start
+        self._stop = stop
+        self._lead = 2 * tolerances.window_s
+        self._advanced = -math.inf
+        self.diff = TimeDiff(tolerances)
+
+    def __call__(self, channel: str, msg: Message) -> None:
+        if channel in self._skip or not self._start - 1e-12 <= msg.t <= self._stop:
+            return
+        self.diff.second(channel, msg)
+        t = msg.t
+        if t > self._advanced + self._lead:
+            self._read_to(t + self._lead)
+            self.diff.advance(t - self._lead)
+            self._advanced = t
+
+    def _read_to(self, t: float) -> None:
+        nxt = self._next
+        while nxt is not None and nxt[1].t <= t:
+            channel, msg = nxt
+            if self._start - 1e-12 <= msg.t <= self._stop:
+                self.diff.first(channel, msg)
+            nxt = next(self._source, None)
+        self._next = nxt
+
+    def finish(self) -> DiffReport:
+        """Read the rest of the recording's window and compare everything left."""
+        self._read_to(self._stop)
+        return self.diff.report()
+
+
 def _expected(
-    rec: Recording, graph: Mapping[str, Any], fed: list[str], left_out: set[str]
+    rec: Recording, channels: Iterable[str], left_out: set[str], *, by_time: bool = False
 ) -> Iterator[tuple[str, Message]]:
-    """The recorded messages to compare with, in publish order (an actor may stamp a
-    message earlier than one published before it); none from or about an actor the
-    replay leaves out (``left_out``: a command source)."""
-    channels = [ch for ch in graph.get("channels", {}) if ch not in fed] + [EVENTS_CHANNEL]
-    for r in rec.records([f"/{ch}" for ch in channels], file_order=True):
+    """The recorded messages of ``channels`` and the events to compare with: in publish
+    order (an actor may stamp a message earlier than one published before it), or in
+    time order ``by_time``; none from or about an actor the replay leaves out
+    (``left_out``: a command source)."""
+    topics = [f"/{ch}" for ch in (*channels, EVENTS_CHANNEL)]
+    for r in rec.records(topics, file_order=not by_time):
         msg = r.value
         if not isinstance(msg, Message):
             continue
@@ -424,7 +552,7 @@ def _expected(
         yield r.topic[1:], msg
 
 
-Device = BusReplay | BoardReplay | I2CReplay
+Device = BusReplay | BoardReplay | I2CReplay | I2CFieldReplay | FieldBus
 
 
 class _Reading:
@@ -484,24 +612,24 @@ def _devices(
     owners: Mapping[str, str],
     links: Mapping[str, Iterable[tuple[str, float, bytes]]],
     cfg: RobotConfig,
+    clock: Clock = "virtual",
 ) -> dict[str, Device]:
+    """The played-back devices: byte for byte (virtual time), or by time (a real clock)."""
     devices: dict[str, Device] = {}
     for name, cls in owners.items():
         events = links.get(name, ())
         if cls.endswith(":BusScheduler"):
-            devices[name] = BusReplay(events, baudrate=cfg.bus.baudrate)
+            if clock == "real":
+                devices[name] = field_chain(events, models=cfg.servos(), baudrate=cfg.bus.baudrate)
+            else:
+                devices[name] = BusReplay(events, baudrate=cfg.bus.baudrate)
         elif cls.endswith(":SensorReader"):
             devices[name] = BoardReplay(events)
+        elif clock == "real":
+            devices[name] = I2CFieldReplay(events)
         else:
             devices[name] = I2CReplay(events)
     return devices
-
-
-_KINDS: Final[Mapping[type, DeviceKind[Any]]] = {
-    BusReplay: REPLAYED_BUS,
-    BoardReplay: REPLAYED_BOARD,
-    I2CReplay: REPLAYED_I2C,
-}
 
 
 @contextlib.contextmanager
@@ -509,13 +637,24 @@ def _registered(devices: Mapping[str, Device]) -> Iterator[None]:
     """Each played-back device registered under its actor's name for the run."""
     with contextlib.ExitStack() as stack:
         for name, device in devices.items():
-            stack.enter_context(DEVICES.registered(_KINDS[type(device)], name, device))
+            entry: contextlib.AbstractContextManager[Any]
+            if isinstance(device, FieldBus):
+                entry = DEVICES.registered(SERVO_CHAIN, name, device.chain)
+            elif isinstance(device, BusReplay):
+                entry = DEVICES.registered(REPLAYED_BUS, name, device)
+            elif isinstance(device, BoardReplay):
+                entry = DEVICES.registered(REPLAYED_BOARD, name, device)
+            else:
+                entry = DEVICES.registered(REPLAYED_I2C, name, device)
+            stack.enter_context(entry)
         yield
 
 
 def _first_mismatch(
     name: str, device: Device, start: float, end: float, whole: bool
 ) -> Divergence | None:
+    if isinstance(device, FieldBus):
+        return None  # by time: its writes are reported, not a divergence of bytes
     if isinstance(device, BusReplay):
         port = device.port
         m = None if port is None else port.first_mismatch
@@ -540,9 +679,17 @@ def _describe(device: Device, count: bool) -> str:
             f"{port.next}{of} recorded packets written, "
             f"{port.mismatches} differing, {port.unrecorded_timeouts} waits not recorded"
         )
+    if isinstance(device, FieldBus):
+        return device.describe()
     if isinstance(device, BoardReplay):
         left = f"{device.incoming.left()} recorded chunks left, " if count else ""
         return f"{left}{device.mismatches} sends differing"
+    if isinstance(device, I2CFieldReplay):
+        return (
+            f"by time: {device.held_calls} calls answered with the last value held, "
+            f"{device.skipped_calls} recorded calls not made, "
+            f"{device.mismatches} calls differing"
+        )
     left = f"{device.events.left()} recorded calls left, " if count else ""
     return f"{left}{device.mismatches} calls differing"
 
@@ -585,7 +732,12 @@ def _recorder(
     recorder = Recorder(
         record if record is not None else os.devnull,
         # Where this replay stops is its run's duration: a replay of it stops there too.
-        metadata={"kind": "replay", "replayed": str(rec.path), "duration_s": repr(end)},
+        metadata={
+            "kind": "replay",
+            "clock": "virtual",
+            "replayed": str(rec.path),
+            "duration_s": repr(end),
+        },
         attachments=attachments,
         live=live,
     )

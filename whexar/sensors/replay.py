@@ -155,6 +155,10 @@ class I2CReplay(_Compared):
         """Read as the replay goes: an hour of recording is never held at once."""
         self.unrecorded_calls = 0
 
+    def open(self, now: Callable[[], float]) -> I2CReplay:
+        """Open as the recording did (the clock is not needed: calls come in order)."""
+        return self.opened()
+
     def opened(self) -> I2CReplay:
         """Open as the recording did: the next ``open``, or raise its ``gone``."""
         events = self.events
@@ -212,8 +216,8 @@ under the 0.3 s after which the reader calls the link stale."""
 
 class I2CFieldReplay(_Compared):
     """The recorded I²C calls of the IMU reader played back by time (module docstring),
-    opened as ``device = "replay:NAME"``. :attr:`now` is the runtime's clock, set by the
-    replay once it runs; ``window_s`` how far a call may be from its recorded one."""
+    opened as ``device = "replay:NAME"``. :attr:`now` is the runtime's clock, which the
+    reader gives it as it opens; ``window_s`` how far a call may be from its recorded one."""
 
     def __init__(self, events: Iterable[Event], *, window_s: float = FIELD_WINDOW_S) -> None:
         super().__init__()
@@ -266,6 +270,11 @@ class I2CFieldReplay(_Compared):
         if self._gone_at is not None and self._gone_at[0] <= t:
             return self._gone_at[1]
         return None
+
+    def open(self, now: Callable[[], float]) -> I2CFieldReplay:
+        """Open on the runtime's clock ``now``, as the recording had the link at this time."""
+        self.now = now
+        return self.opened()
 
     def opened(self) -> I2CFieldReplay:
         """Open as the recording had it open at this time: unplugged, raise its reason."""

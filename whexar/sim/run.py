@@ -398,7 +398,7 @@ def _recorder(
         cfg,
         config,
         {"wiring.json": json.dumps(graph, indent=1), URDF_ATTACHMENT: build_urdf(cfg)},
-        {"robot": cfg.robot.name, "kind": "simulation", **(metadata or {})},
+        {"robot": cfg.robot.name, "kind": "simulation", "clock": "virtual", **(metadata or {})},
         live,
     )
 

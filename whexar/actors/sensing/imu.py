@@ -200,7 +200,9 @@ class ImuReader(Actor):
             return lambda: fake
         scheme, key = device.split(":", 1)
         if scheme == REPLAYED_I2C.scheme:
-            return DEVICES.get(REPLAYED_I2C, key, setting=f"device = {device!r}").opened
+            replayed = DEVICES.get(REPLAYED_I2C, key, setting=f"device = {device!r}")
+            clock = self.clock
+            return lambda: replayed.open(clock.now)
         registered = DEVICES.get(I2C_BUS, key, setting=f"device = {device!r}")
         return lambda: registered
 

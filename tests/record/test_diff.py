@@ -1,0 +1,191 @@
+"""Two runs compared by time: what agrees within a window and a tolerance, what does not."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from whexar.actors.messages import (
+    JointState,
+    LocomotionState,
+    ServoDegraded,
+    ServoStates,
+    StepCommand,
+)
+from whexar.record.diff import DEFAULT_TOLERANCES, Tolerances, diff_streams
+from whexar.runtime.messages import ActorStarting, Message
+
+CYCLE = 0.01
+
+
+def states(t: float, femur: float, *, coxa: float = 0.0) -> ServoStates:
+    joints = tuple(
+        JointState(leg=0, joint=j, servo_id=j + 1, position_rad=(coxa, 0.0, femur)[j])
+        for j in range(3)
+    )
+    return ServoStates(t=t, source="bus", cycle=round(t / CYCLE), joints=joints)
+
+
+def walk(
+    seconds: float = 2.0,
+    *,
+    shift: float = 0.0,
+    femur: float = 0.0,
+    after: float = math.inf,
+    coxa: float = 0.0,
+) -> list[tuple[str, Message]]:
+    """A run: the femur sways; from ``after`` on it is ``femur`` rad off; ``shift`` s late."""
+    out: list[tuple[str, Message]] = []
+    for k in range(round(seconds / CYCLE)):
+        t = k * CYCLE + shift
+        q = 0.3 * math.sin(2 * math.pi * 0.5 * k * CYCLE) + (femur if t >= after else 0.0)
+        out.append(("servo-state", states(t, q, coxa=coxa)))
+    return out
+
+
+def test_a_run_agrees_with_itself_and_with_itself_a_cycle_late() -> None:
+    same = diff_streams(walk(), walk())
+    assert same.agrees
+    assert same.compared > 500
+    late = diff_streams(walk(), walk(shift=CYCLE))
+    assert late.agrees, late.table()
+
+
+def test_a_joint_off_beyond_tolerance_is_named_with_the_time_it_first_was() -> None:
+    report = diff_streams(walk(), walk(femur=0.1, after=1.0))
+    assert not report.agrees
+    (row,) = [r for r in report.fields if not r.agrees]
+    assert (row.channel, row.message, row.field, row.kind) == (
+        "servo-state",
+        "ServoStates",
+        "position_rad",
+        "angle",
+    )
+    # Seen once the window has passed the change: a sample before it is within a window.
+    assert row.first_beyond_t == pytest.approx(1.0 + DEFAULT_TOLERANCES.window_s, abs=CYCLE)
+    assert row.first_beyond_key == "leg RF joint femur servo 3"
+    assert row.largest == pytest.approx(0.1, abs=0.01)
+    assert row.beyond == pytest.approx(100, abs=2)
+    assert "leg RF joint femur servo 3" in report.table()
+    assert report.first_beyond is row
+
+
+def test_within_a_looser_tolerance_the_same_difference_agrees() -> None:
+    loose = DEFAULT_TOLERANCES.with_({"angle_rad": 0.2})
+    assert diff_streams(walk(), walk(femur=0.1, after=1.0), loose).agrees
+
+
+def test_angles_wrap_around() -> None:
+    a = walk(seconds=0.5, coxa=math.pi - 0.001)
+    b = walk(seconds=0.5, coxa=-math.pi + 0.001)
+    assert diff_streams(a, b).agrees
+
+
+def test_a_missing_event_is_reported_with_its_time() -> None:
+    degraded = ServoDegraded(t=1.2, source="bus", servo_id=3, reason="timeout")
+    a = [*walk(), ("events", degraded)]
+    a.sort(key=lambda e: e[1].t)
+    report = diff_streams(a, walk())
+    assert not report.agrees
+    (row,) = report.events
+    assert (row.kind, row.first, row.second, row.first_unmatched_t) == ("ServoDegraded", 1, 0, 1.2)
+
+
+def test_events_matched_in_order_may_come_a_little_late_not_much() -> None:
+    def run(t: float) -> list[tuple[str, Message]]:
+        return [("events", ServoDegraded(t=t, source="bus", servo_id=3, reason="timeout"))]
+
+    assert diff_streams(run(1.0), run(1.1)).agrees
+    report = diff_streams(run(1.0), run(2.0))
+    assert not report.agrees
+    assert report.events[0].late == 1
+
+
+def test_the_runtimes_own_lifecycle_is_not_compared() -> None:
+    a = [("events", ActorStarting(t=0.0019, source="runtime", actor="bus", incarnation=1)), *walk()]
+    b = [("events", ActorStarting(t=0.0, source="runtime", actor="bus", incarnation=1)), *walk()]
+    assert diff_streams(a, b).agrees
+    assert diff_streams(a, walk()).agrees
+
+
+def test_step_commands_are_matched_by_leg_and_order_and_their_targets_compared() -> None:
+    def step(t: float, x: float) -> tuple[str, Message]:
+        return (
+            "steps",
+            StepCommand(
+                t=t,
+                source="coordinator",
+                leg=0,
+                kind="swing",
+                start_t=t,
+                duration_s=0.5,
+                target=(x, -0.2, -0.29),
+            ),
+        )
+
+    assert diff_streams([step(1.0, 0.38)], [step(1.01, 0.381)]).agrees
+    report = diff_streams([step(1.0, 0.38)], [step(1.0, 0.45)])
+    (row,) = [r for r in report.fields if not r.agrees]
+    assert (row.message, row.field) == ("StepCommand", "target[]")
+
+
+def test_labels_and_the_gait_phase_compare_as_such() -> None:
+    def loco(t: float, activity: str, phase: float) -> tuple[str, Message]:
+        return (
+            "locomotion",
+            LocomotionState(
+                t=t,
+                source="coordinator",
+                activity=activity,
+                mode="walk",
+                gait="tripod",
+                stance="default",
+                twist=(0.1, 0.0, 0.0),
+                gait_phase=phase,
+                swing_legs=(0, 3, 4),
+                margin_m=0.08,
+                upside_down=False,
+            ),
+        )
+
+    assert diff_streams([loco(1.0, "walking", 0.99)], [loco(1.0, "walking", 0.01)]).agrees
+    times = [1.0 + k * CYCLE for k in range(10)]  # a tenth of a second: it lasts
+    report = diff_streams(
+        [loco(t, "walking", 0.5) for t in times], [loco(t, "standing", 0.5) for t in times]
+    )
+    assert [r.field for r in report.fields if not r.agrees] == ["activity"]
+
+
+def test_a_blip_of_a_cycle_is_counted_but_agrees() -> None:
+    a = walk()
+    b = walk()
+    # One cycle of the first run with the femur far off: a discrete change a cycle apart.
+    k = 100
+    channel, msg = a[k]
+    assert isinstance(msg, ServoStates)
+    a[k] = (channel, states(msg.t, 0.5))
+    report = diff_streams(a, b)
+    assert report.agrees
+    (row,) = [r for r in report.fields if r.beyond]
+    assert (row.field, row.lasting) == ("position_rad", 0)
+
+
+def test_a_signal_only_one_run_has_does_not_agree() -> None:
+    report = diff_streams(walk(), [])
+    assert not report.agrees
+    assert all(r.unmatched for r in report.fields if not r.agrees)
+
+
+def test_the_report_is_strict_json() -> None:
+    report = diff_streams(walk(), walk(femur=0.1, after=1.0))
+    text = json.dumps(report.to_json(), allow_nan=False)
+    data = json.loads(text)
+    assert data["agrees"] is False
+    assert {f["field"] for f in data["fields"] if f["beyond"]} == {"position_rad"}
+
+
+def test_an_unknown_tolerance_is_named_with_the_known_ones() -> None:
+    with pytest.raises(KeyError, match=r"angle_deg; known: .*angle_rad"):
+        Tolerances().with_({"angle_deg": 1.0})
