@@ -179,8 +179,9 @@ _NAMED: Final[Mapping[str, str | tuple[str, ...]]] = {
 
 
 def _kind(name: str, value: object, index: int | None = None) -> str:
-    """The kind of field ``name`` (element ``index`` of it), from its name or its type."""
-    if isinstance(value, bool) or value is None:
+    """The kind of field ``name`` (element ``index`` of it), from its name or its type (a
+    number left out, ``None``, is of the kind its name says)."""
+    if isinstance(value, bool):
         return "flag"
     if isinstance(value, str):
         return "label"
