@@ -63,8 +63,10 @@ def test_a_joint_off_beyond_tolerance_is_named_with_the_time_it_first_was() -> N
         "position_rad",
         "angle",
     )
-    # Seen once the window has passed the change: a sample before it is within a window.
-    assert row.first_beyond_t == pytest.approx(1.0 + DEFAULT_TOLERANCES.window_s, abs=CYCLE)
+    # Seen at most a window after the change: until then the other run's samples from before
+    # it are within reach.
+    assert row.first_beyond_t is not None
+    assert 1.0 <= row.first_beyond_t <= 1.0 + DEFAULT_TOLERANCES.window_s + CYCLE
     assert row.first_beyond_key == "leg RF joint femur servo 3"
     assert row.largest == pytest.approx(0.1, abs=0.01)
     assert row.beyond == pytest.approx(100, abs=2)

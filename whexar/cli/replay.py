@@ -73,8 +73,8 @@ def add_tolerance_options(cmd: argparse.ArgumentParser) -> None:
         "--window",
         type=float,
         metavar="S",
-        help="how far apart in time two samples of one signal may be (default 0.02 s: about "
-        "two bus cycles)",
+        help="how far apart in time two samples of one signal may be (default 0.05 s: five "
+        "bus cycles)",
     )
     cmd.add_argument(
         "--tol",
