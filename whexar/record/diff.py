@@ -91,6 +91,10 @@ _IDENTITY: Final = ("leg", "joint", "servo_id", "sensor", "link")
 """Fields that say what a message or an element is about: part of the key."""
 _DISCRETE: Final = frozenset({"StepCommand", "SwingEnded", "MotionCommand"})
 """Messages that are no state: matched by kind and order, as events are."""
+_EVENT_KINDS: Final = ("what", "kind")
+"""Fields that say which kind of event a message is (a LocomotionChanged of the activity,
+a StepCommand of a swing): matched in order within their kind, so that one event more in
+either run does not put every later one out of step."""
 _STATISTICS: Final = frozenset({"BusStats", "SensorStats"})
 """Counters of the process (cycles, bytes, retries per second): not the robot's signals."""
 
@@ -331,35 +335,40 @@ def _nearest(
                 best = d
         return best
     period = 2 * math.pi if kind == "angle" else 1.0 if kind == "phase" else 0.0
-    points: list[tuple[float, float]] = []
-    for u, other in ((held,) if held is not None else ()) + tuple(samples):
-        if not isinstance(other, float) or math.isnan(other):
+    lo_t, hi_t = t - w, t + w
+    low, high = math.inf, -math.inf
+    prev: tuple[float, float] | None = None
+    wrap = period and math.isfinite(value)
+    # One pass, in time order: the held sample, then those of the window and the first
+    # after it. The line's range only grows: once it holds ``value``, that is the answer.
+    for item in itertools.chain((held,) if held is not None else (), samples):
+        u, other = item
+        if not isinstance(other, float) or other != other:  # a flag, or NaN
             continue
-        if period and math.isfinite(other) and math.isfinite(value):
+        if wrap and math.isfinite(other):
             other = value + ((other - value + period / 2) % period - period / 2)
-        points.append((u, other))
-        if u > t + w:
+        if prev is not None:
+            u1, v1 = prev
+            if u1 < u:
+                for edge in (lo_t, hi_t):  # where the line crosses the window's edges
+                    if u1 < edge < u:
+                        x = v1 + (other - v1) * (edge - u1) / (u - u1)
+                        low, high = min(low, x), max(high, x)
+        if lo_t <= u <= hi_t:
+            low, high = min(low, other), max(high, other)
+        if low <= value <= high:
+            return 0.0
+        prev = (u, other)
+        if u > hi_t:
             break
-    if not points:
-        return math.inf
-    lo, hi = t - w, t + w
-    values: list[float] = []
-    for (u1, v1), (u2, v2) in itertools.pairwise(points):
-        if u2 < lo or u1 > hi:
-            continue
-        for edge in (lo, hi):  # where the line crosses the window's edges
-            if u1 < edge < u2 and math.isfinite(v1) and math.isfinite(v2):
-                values.append(v1 + (v2 - v1) * (edge - u1) / (u2 - u1))
-        if lo <= u1 <= hi:
-            values.append(v1)
-        if lo <= u2 <= hi:
-            values.append(v2)
-    if not values:  # the last sample is before the window: it holds
-        values.append(points[-1][1])
-    low, high = min(values), max(values)
+    if low > high:  # nothing in the window: the last sample before it holds
+        if prev is None:
+            return math.inf
+        low = high = prev[1]
     if low <= value <= high:
         return 0.0
-    return min(abs(value - low), abs(value - high))
+    d = min(abs(value - low), abs(value - high))
+    return d if d == d else math.inf
 
 
 # --------------------------------------------------------------------------- the report
@@ -596,6 +605,10 @@ class TimeDiff:
 
     def _event(self, channel: str, msg: Message, first: bool) -> None:
         what = type(msg).__name__
+        for name in _EVENT_KINDS:
+            value = getattr(msg, name, None)
+            if isinstance(value, str):
+                what = f"{what} {value}"  # a change of activity is not one of gait
         leg = getattr(msg, "leg", None)
         if leg is not None and isinstance(leg, int) and 0 <= leg < len(LEG_NAMES):
             what = f"{what} {LEG_NAMES[leg]}"
