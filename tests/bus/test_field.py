@@ -20,7 +20,6 @@ from whexar.bus.field import (
     Silent,
     Written,
     decode,
-    field_chain,
 )
 from whexar.bus.protocol import Instruction, Packet
 from whexar.bus.sdk import DxlBus, tap_port
@@ -110,7 +109,7 @@ def play(
     **options: Any,
 ) -> tuple[FieldBus, RunResult]:
     """The same graph against ``events`` played back by time (port ``emulator:field``)."""
-    bus = field_chain(events, models=MODELS, baudrate=CFG.bus.baudrate, **options)
+    bus = FieldBus(events, models=MODELS, baudrate=CFG.bus.baudrate, **options)
     with DEVICES.registered(SERVO_CHAIN, "field", bus.chain):
         result = run_actors(bus_graph("emulator:field", params, wiggle=wiggle), duration=duration)
     return bus, result
@@ -202,7 +201,7 @@ def _positions_session() -> Events:
 
 
 def test_the_servos_answer_the_latest_recorded_values_held_between_them() -> None:
-    played = field_chain(_positions_session(), models=MODELS, baudrate=CFG.bus.baudrate)
+    played = FieldBus(_positions_session(), models=MODELS, baudrate=CFG.bus.baudrate)
     s = Session(played.chain)
     assert s.at(0.0).read(1, POSITION).value == 2000  # before the first: the first holds
     assert s.at(0.3).read(1, POSITION).value == 2000
@@ -215,7 +214,7 @@ def test_the_servos_answer_the_latest_recorded_values_held_between_them() -> Non
 
 
 def test_a_setting_holds_what_the_replay_wrote_over_a_later_recorded_read() -> None:
-    played = field_chain(_positions_session(), models=MODELS, baudrate=CFG.bus.baudrate)
+    played = FieldBus(_positions_session(), models=MODELS, baudrate=CFG.bus.baudrate)
     s = Session(played.chain)
     assert s.at(0.2).read(1, TORQUE).value == 0
     assert s.at(0.3).write(1, TORQUE, 1).ok
@@ -239,7 +238,7 @@ def _goals_session(goals: Sequence[tuple[float, int]]) -> Events:
 
 def test_a_write_agrees_within_the_span_of_the_goals_recorded_around_it() -> None:
     recorded = [(1.00, 2100), (1.01, 2110), (1.02, 2120), (1.50, 2120), (2.00, 2300), (3.0, 0)]
-    played = field_chain(_goals_session(recorded), models=MODELS, baudrate=CFG.bus.baudrate)
+    played = FieldBus(_goals_session(recorded), models=MODELS, baudrate=CFG.bus.baudrate)
     s = Session(played.chain)
     for t, tick in ((1.005, 2104), (1.015, 2150), (1.025, 2120), (2.5, 2300)):
         s.at(t).sync_write(GOAL.address, 4, {3: tick.to_bytes(4, "little")})

@@ -30,7 +30,7 @@ from typing import Any, Final, TypeVar
 from whexar.bench import Figure, Progress, Report
 from whexar.bench.bus import _graph, emulator_process
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
-from whexar.bus.field import FieldBus, field_chain
+from whexar.bus.field import FieldBus
 from whexar.config import RobotConfig
 from whexar.runtime.clock import run as run_loop
 from whexar.runtime.devices import DEVICES
@@ -88,7 +88,7 @@ class _Timer:
 
 
 def _field(events: Iterable[tuple[str, float, bytes]], cfg: RobotConfig) -> FieldBus:
-    return field_chain(events, models=cfg.servos(), baudrate=cfg.bus.baudrate)
+    return FieldBus(events, models=cfg.servos(), baudrate=cfg.bus.baudrate)
 
 
 def replay(events: Events, cfg: RobotConfig, seconds: float) -> tuple[float, float, int]:

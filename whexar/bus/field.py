@@ -73,7 +73,7 @@ writes after the recording's end are counted, not compared. Nothing raises, noth
 decoded ``max(stale_after_s, write_window_s)`` ahead of the bus time: what is held is
 that much of the recording, however long it is. Past its end, the servos go stale.
 
-:func:`field_chain` builds a :class:`FieldBus`; its :attr:`~FieldBus.chain`, registered
+:class:`FieldBus` is the recorded bus; its :attr:`~FieldBus.chain`, registered
 under :data:`~whexar.bus.emulator.chain.SERVO_CHAIN`, opens as ``port = "emulator:NAME"``.
 """
 
@@ -130,7 +130,6 @@ __all__ = [
     "Written",
     "decode",
     "expects_answer",
-    "field_chain",
     "packet_writes",
 ]
 
@@ -868,26 +867,3 @@ def _ids(first: Mapping[int, float], shown: int = 6) -> str:
     ordered = sorted(first.items(), key=lambda item: item[1])
     text = ", ".join(f"servo {sid} from {t:.3f} s" for sid, t in ordered[:shown])
     return text + (f"… ({len(ordered)} servos)" if len(ordered) > shown else "")
-
-
-def field_chain(
-    events: Iterable[tuple[str, float, bytes]],
-    *,
-    models: Mapping[int, str],
-    baudrate: int,
-    stale_after_s: float = STALE_AFTER_S,
-    write_window_s: float = WRITE_WINDOW_S,
-    pace: bool = True,
-) -> FieldBus:
-    """The recorded bus ``events`` (``(direction, t, data)``, in recorded order; read as
-    the replay goes) played back by time by servos ``models`` (ID → model name) at
-    ``baudrate``; register :attr:`FieldBus.chain` under
-    :data:`~whexar.bus.emulator.chain.SERVO_CHAIN` to open it as ``emulator:NAME``."""
-    return FieldBus(
-        events,
-        models=models,
-        baudrate=baudrate,
-        stale_after_s=stale_after_s,
-        write_window_s=write_window_s,
-        pace=pace,
-    )

@@ -24,8 +24,10 @@ from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
 from whexar.bus.protocol import (
+    BROADCAST_ANSWERED,
     BROADCAST_ID,
     HEADER,
+    NO_REPLY,
     Instruction,
     Packet,
     PacketDecoder,
@@ -41,17 +43,6 @@ from whexar.bus.protocol import (
     unstuff,
 )
 
-_ANSWERED_BROADCAST: Final = frozenset(
-    {
-        Instruction.PING,
-        Instruction.SYNC_READ,
-        Instruction.FAST_SYNC_READ,
-        Instruction.BULK_READ,
-        Instruction.FAST_BULK_READ,
-    }
-)
-"""Broadcast instructions the servos answer (e-manual, "Status Packet")."""
-_NO_REPLY: Final = frozenset({Instruction.SYNC_WRITE, Instruction.BULK_WRITE})
 _MUST_ANSWER: Final = frozenset(
     {
         Instruction.PING,
@@ -208,9 +199,9 @@ def expects_answer(packet: Packet) -> bool:
     """Whether a servo answers instruction ``packet`` (e-manual, "Status Packet": not a
     Sync or Bulk Write, and to the broadcast ID only Ping and the group reads)."""
     inst = packet.instruction
-    if inst in _NO_REPLY:
+    if inst in NO_REPLY:
         return False
-    return packet.id != BROADCAST_ID or inst in _ANSWERED_BROADCAST
+    return packet.id != BROADCAST_ID or inst in BROADCAST_ANSWERED
 
 
 @dataclass(slots=True)

@@ -82,6 +82,20 @@ _STATUS: Final = int(Instruction.STATUS)
 """The status instruction as a plain int: cheaper than the enum member on hot paths."""
 
 
+NO_REPLY: Final = frozenset({Instruction.SYNC_WRITE, Instruction.BULK_WRITE})
+"""Instructions no servo answers (e-manual, "Status Packet")."""
+BROADCAST_ANSWERED: Final = frozenset(
+    {
+        Instruction.PING,
+        Instruction.SYNC_READ,
+        Instruction.FAST_SYNC_READ,
+        Instruction.BULK_READ,
+        Instruction.FAST_BULK_READ,
+    }
+)
+"""Instructions sent to the broadcast ID that the servos answer (e-manual, "Status Packet")."""
+
+
 class StatusError(IntEnum):
     """Error numbers in bits 0–6 of a status packet's ERR byte (e-manual, "Error")."""
 

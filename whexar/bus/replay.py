@@ -41,22 +41,11 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Final
 
-from whexar.bus.protocol import BROADCAST_ID, Instruction
+from whexar.bus.protocol import BROADCAST_ANSWERED, BROADCAST_ID, NO_REPLY
 from whexar.runtime.devices import DeviceKind
 from whexar.runtime.streams import Hand
 
 __all__ = ["REPLAYED_BUS", "BusReplay", "Mismatch", "ReplayPort", "expects_reply"]
-
-_NO_REPLY: Final = frozenset({Instruction.SYNC_WRITE, Instruction.BULK_WRITE})
-_BROADCAST_ANSWERED: Final = frozenset(
-    {
-        Instruction.PING,
-        Instruction.SYNC_READ,
-        Instruction.FAST_SYNC_READ,
-        Instruction.BULK_READ,
-        Instruction.FAST_BULK_READ,
-    }
-)
 
 
 def expects_reply(packet: bytes) -> bool:
@@ -66,9 +55,9 @@ def expects_reply(packet: bytes) -> bool:
     if len(packet) < 8:
         return True  # not a packet the SDK builds: let the recording say what came back
     instruction = packet[7]
-    if instruction in _NO_REPLY:
+    if instruction in NO_REPLY:
         return False
-    return packet[4] != BROADCAST_ID or instruction in _BROADCAST_ANSWERED
+    return packet[4] != BROADCAST_ID or instruction in BROADCAST_ANSWERED
 
 
 @dataclass(slots=True)

@@ -791,5 +791,28 @@ def diff_recordings(
     b: str | os.PathLike[str],
     tolerances: Tolerances = DEFAULT_TOLERANCES,
 ) -> DiffReport:
-    """Compare two recordings' messages by time (``whexar log diff A B``)."""
-    return diff_streams(recorded_messages(a), recorded_messages(b), tolerances)
+    """Compare two recordings' messages by time (``whexar log diff A B``), over the time
+    both cover up to the earlier one's stop: the last :data:`STOP_S` before it are each
+    run's own stopping, on its own clock."""
+    from whexar.record.reader import Recording
+
+    until = min(_stop_time(Recording(a)), _stop_time(Recording(b))) - STOP_S
+
+    def window(path: str | os.PathLike[str]) -> Iterator[tuple[str, Message]]:
+        for channel, msg in recorded_messages(path):
+            if msg.t > until:
+                return
+            yield channel, msg
+
+    return diff_streams(window(a), window(b), tolerances)
+
+
+STOP_S: Final = 0.1
+"""The end of a run not compared with another's: where each stopped on its own clock."""
+
+
+def _stop_time(rec: Recording) -> float:
+    """Where a recorded run stopped: its duration, or where its readable part ends."""
+    duration = rec.metadata.get("run", {}).get("duration_s")
+    readable = (rec.last_ns or 0) / 1e9
+    return min(float(duration), readable) if duration is not None else readable

@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING, Any, Final, Literal, TypeVar
 import anyio
 
 from whexar.bus.emulator.chain import SERVO_CHAIN
-from whexar.bus.field import FieldBus, field_chain
+from whexar.bus.field import FieldBus
 from whexar.bus.replay import REPLAYED_BUS, BusReplay
 from whexar.config import RobotConfig, load_config
 from whexar.errors import UsageError
@@ -623,7 +623,7 @@ def _devices(
         events = links.get(name, ())
         if cls.endswith(":BusScheduler"):
             if clock == "real":
-                devices[name] = field_chain(events, models=cfg.servos(), baudrate=cfg.bus.baudrate)
+                devices[name] = FieldBus(events, models=cfg.servos(), baudrate=cfg.bus.baudrate)
             else:
                 devices[name] = BusReplay(events, baudrate=cfg.bus.baudrate)
         elif cls.endswith(":SensorReader"):

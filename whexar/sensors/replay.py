@@ -82,6 +82,42 @@ class _Compared:
                 self.first_mismatch = LinkMismatch(t, recorded, written)
 
 
+def _recorded_error(text: str) -> OSError:
+    """The ``OSError`` a recorded failure (``"ERRNO:message"``) raises again."""
+    code, _, message = text.partition(":")
+    return OSError(int(code) if code.lstrip("-").isdigit() else 5, message)
+
+
+class _SMBusCalls(_Compared):
+    """The three smbus2 calls the LSM9DS1 driver makes, answered by :meth:`_call` (the
+    bytes recorded for the call that goes out, or ``None``)."""
+
+    unrecorded_calls = 0
+
+    def _call(self, out: bytes) -> bytes | None:
+        raise NotImplementedError
+
+    def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
+        got = self._call(bytes((i2c_addr, register)))
+        if not got:
+            self.unrecorded_calls += 1
+            raise OSError(121, "Remote I/O error (no recorded answer)")
+        return got[0]
+
+    def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None:
+        self._call(bytes((i2c_addr, register, value)))
+
+    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]:
+        got = self._call(bytes((i2c_addr, register)))
+        if got is None or len(got) < length:
+            self.unrecorded_calls += 1
+            raise OSError(121, "Remote I/O error (no recorded answer of that length)")
+        return list(got[:length])
+
+    def close(self) -> None:
+        """Nothing to close: the recording stays for the next open."""
+
+
 class BoardReplay(_Compared):
     """The recorded link to the sensor board, opened by the sensor reader as
     ``port = "replay:NAME"`` once registered (:data:`REPLAYED_BOARD`)."""
@@ -144,7 +180,7 @@ REPLAYED_BOARD: Final = DeviceKind[BoardReplay]("replayed sensor-board link", "r
 """Opened by :class:`~whexar.actors.sensing.SensorReader` as ``port = "replay:NAME"``."""
 
 
-class I2CReplay(_Compared):
+class I2CReplay(_SMBusCalls):
     """The recorded I²C calls of the IMU reader, opened as ``device = "replay:NAME"``
     once registered (:data:`REPLAYED_I2C`). The calls of ``smbus2.SMBus`` the driver
     makes, answered from the recording."""
@@ -181,31 +217,10 @@ class I2CReplay(_Compared):
         self.compare(events.popleft(), out)
         after = events.peek()
         if after is not None and after[0] == "error":
-            code, _, text = events.popleft()[2].decode("utf-8", "replace").partition(":")
-            raise OSError(int(code) if code.lstrip("-").isdigit() else 5, text)
+            raise _recorded_error(events.popleft()[2].decode("utf-8", "replace"))
         if after is not None and after[0] == "rx":
             return events.popleft()[2]
         return None
-
-    def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
-        got = self._call(bytes((i2c_addr, register)))
-        if not got:
-            self.unrecorded_calls += 1
-            raise OSError(121, "Remote I/O error (no recorded answer)")
-        return got[0]
-
-    def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None:
-        self._call(bytes((i2c_addr, register, value)))
-
-    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]:
-        got = self._call(bytes((i2c_addr, register)))
-        if got is None:
-            self.unrecorded_calls += 1
-            raise OSError(121, "Remote I/O error (no recorded answer)")
-        return list(got)
-
-    def close(self) -> None:
-        """Nothing to close: the recording stays for the next open."""
 
 
 FIELD_WINDOW_S: Final = 0.05
@@ -214,7 +229,7 @@ still be the same call: a few of the IMU's sample periods at its default 119 Hz,
 under the 0.3 s after which the reader calls the link stale."""
 
 
-class I2CFieldReplay(_Compared):
+class I2CFieldReplay(_SMBusCalls):
     """The recorded I²C calls of the IMU reader played back by time (module docstring),
     opened as ``device = "replay:NAME"``. :attr:`now` is the runtime's clock, which the
     reader gives it as it opens; ``window_s`` how far a call may be from its recorded one."""
@@ -304,17 +319,9 @@ class I2CFieldReplay(_Compared):
             return self._held.get(out)
         _, answer, error = queue.popleft()
         if error is not None:
-            code, _, text = error.partition(":")
-            raise OSError(int(code) if code.lstrip("-").isdigit() else 5, text)
+            raise _recorded_error(error)
         self._held[out] = answer
         return answer
-
-    def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
-        got = self._call(bytes((i2c_addr, register)))
-        if not got:
-            self.unrecorded_calls += 1
-            raise OSError(121, "Remote I/O error (no recorded answer)")
-        return got[0]
 
     def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> None:
         out = bytes((i2c_addr, register, value))
@@ -325,16 +332,6 @@ class I2CFieldReplay(_Compared):
             self._held[out] = None
             return
         self._call(out)
-
-    def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, /) -> list[int]:
-        got = self._call(bytes((i2c_addr, register)))
-        if got is None or len(got) < length:
-            self.unrecorded_calls += 1
-            raise OSError(121, "Remote I/O error (no recorded answer of that length)")
-        return list(got[:length])
-
-    def close(self) -> None:
-        """Nothing to close: the recording stays for the next open."""
 
 
 REPLAYED_I2C: Final = DeviceKind[I2CReplay | I2CFieldReplay]("replayed I²C bus", "replay")
