@@ -226,7 +226,7 @@ def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> 
     ``--no-record``."""
     import os
 
-    from whexar.sim.run import run_recorder
+    from whexar.record.runs import run_recorder
 
     if args.no_record:
         path: Path | str = os.devnull
@@ -242,7 +242,18 @@ def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> 
     if args.duration is not None:
         metadata["duration_s"] = repr(float(args.duration))
     wiring = {f"wiring{args.graph.suffix}": args.graph.read_bytes()}
-    return run_recorder(path, cfg, config, wiring, metadata, live)
+    return run_recorder(path, cfg, config, wiring, metadata, live, urdf=_urdf(cfg))
+
+
+def _urdf(cfg: RobotConfig) -> str | None:
+    """The robot's URDF for Foxglove's 3D view, where the simulation's packages are
+    installed (it compiles the model); the robot's plain install records without it."""
+    try:
+        from whexar.sim.urdf import build_urdf
+
+        return build_urdf(cfg)
+    except ImportError:  # MuJoCo, of whexar[sim]
+        return None
 
 
 def _robot_config(graph: Graph) -> tuple[Path | None, RobotConfig]:

@@ -57,7 +57,7 @@ from whexar.sim.world import SimWorld
 
 if TYPE_CHECKING:
     from whexar.record.sidecar import AnyRecorder
-    from whexar.record.writer import LiveSink, Recorder, RecorderStats
+    from whexar.record.writer import LiveSink, RecorderStats
 
 Quiet = (ActorStarting, ActorReady, AccelImplausible, AccelPlausible)
 """Events too routine for the progress line."""
@@ -390,50 +390,18 @@ def _recorder(
     live: LiveSink | None = None,
 ) -> AnyRecorder:
     """The recorder of a simulated run: its wiring and URDF attached too."""
-    from whexar.record.writer import URDF_ATTACHMENT
+    from whexar.record.runs import run_recorder
     from whexar.sim.urdf import build_urdf
 
     return run_recorder(
         path,
         cfg,
         config,
-        {"wiring.json": json.dumps(graph, indent=1), URDF_ATTACHMENT: build_urdf(cfg)},
+        {"wiring.json": json.dumps(graph, indent=1)},
         {"robot": cfg.robot.name, "kind": "simulation", "clock": "virtual", **(metadata or {})},
         live,
+        urdf=build_urdf(cfg),
     )
-
-
-def run_recorder(
-    path: str | Path,
-    cfg: RobotConfig,
-    config: str | Path | None,
-    attachments: Mapping[str, str | bytes],
-    metadata: Mapping[str, str],
-    live: LiveSink | None = None,
-) -> AnyRecorder:
-    """A recorder for a run of robot ``cfg`` (read from file ``config``, ``None`` for the
-    built-in): ``attachments`` and ``metadata`` as given, plus what a replay needs —
-    the configuration file and every value the run used — and the URDF on
-    ``/robot_description``. ``whexar sim`` and ``whexar run`` both record through it."""
-    from whexar.record.sidecar import RecorderProcess
-    from whexar.record.writer import CONFIG_ATTACHMENT, EFFECTIVE_CONFIG_ATTACHMENT, Recorder
-    from whexar.sim.urdf import build_urdf
-
-    attached: dict[str, str | bytes] = {
-        **attachments,
-        EFFECTIVE_CONFIG_ATTACHMENT: cfg.model_dump_json(indent=1),
-    }
-    if config is not None:
-        attached[CONFIG_ATTACHMENT] = Path(config).read_bytes()
-    # Written by a process of its own (the runtime only packs), unless a live view
-    # needs the messages here: see whexar.record.sidecar.
-    recorder: Recorder | RecorderProcess = (
-        RecorderProcess(path, metadata=metadata, attachments=attached)
-        if live is None
-        else Recorder(path, metadata=metadata, attachments=attached, live=live)
-    )
-    recorder.robot_description(build_urdf(cfg))  # built once per configuration
-    return recorder
 
 
 __all__ = [
@@ -441,7 +409,6 @@ __all__ = [
     "Sample",
     "SimResult",
     "energy_j",
-    "run_recorder",
     "seated_angles",
     "sim_graph",
     "simulate",
