@@ -12,7 +12,8 @@
 * :mod:`~whexar.cli.log` — ``whexar log info | recover``: recordings;
 * :mod:`~whexar.cli.plot` — ``whexar plot``: plots from a recording;
 * :mod:`~whexar.cli.replay` — ``whexar replay``: a recording played back, and checked;
-* :mod:`~whexar.cli.common` — what they share.
+* :mod:`~whexar.cli.common` — what they share;
+* :mod:`~whexar.cli.extras` — which extra a missing module comes with.
 
 A group adds its commands with ``add_commands(commands)``; each command
 imports what it needs when it runs, so ``whexar --help`` stays fast. The
@@ -20,7 +21,8 @@ top layer: it may import every other package of whexar.
 
 Exit codes: 0 success; 1 a configuration with problems, a benchmark that
 missed its target, a bus scan that found no servo (or could not open its
-port), or a replay that diverged from its recording; 2 bad input (an unknown
+port), a replay that diverged from its recording, or a command that needs an
+extra the install left out (:mod:`~whexar.cli.extras`); 2 bad input (an unknown
 leg, an unreachable target, a malformed option); 3 ``whexar run`` stopped
 after an actor was escalated.
 """
@@ -48,6 +50,7 @@ from whexar.cli import (
     sim,
 )
 from whexar.cli.common import Handler
+from whexar.cli.extras import missing_extra
 from whexar.errors import ConfigError, UsageError
 
 
@@ -76,6 +79,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as exc:
         print(f"whexar: {exc}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as exc:
+        line = missing_extra(exc)
+        if line is None:
+            raise
+        print(f"whexar: {line}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:
