@@ -68,7 +68,6 @@ def test_the_rows_take_every_kind_of_note() -> None:
         "The six coxa servos draw",
         "It draws",
         "the coordinator allows ±20°",
-        "The trochanters follow the pitch up to 45° only.",
         "The thesis has no value here.",
         "We think the motor model",  # a reason: higher
         "The motor model counts only",  # a reason: lower

@@ -206,7 +206,12 @@ class LocomotionSpec(Section):
     min_stability_margin_mm: Positive = 30.0
     """No leg lifts when the static margin of the remaining feet would fall below this."""
     trochanter_follows_pitch: bool = True
-    """Turn the trochanters with the body pitch (eq. 4.18), commanded and measured."""
+    """Turn the trochanters with the body pitch (eq. 4.18), commanded and measured; they
+    carry the feet on their arcs (:func:`whexar.kinematics.leg.trochanter_arc`)."""
+    max_trochanter_deg: float = Field(default=60.0, gt=0, lt=90, allow_inf_nan=False)
+    """The trochanters follow the pitch up to this. The joint turns a full circle (it flips
+    the legs, 6.8.1); the IK of eq. 4.18 needs the angle strictly inside ±90°, and beyond
+    60° the arc lifts the feet by more than half their depth."""
     tilt_filter_s: Positive = 1.0
     """Time constant of the low-pass on the measured pitch the trochanters follow: a slope
     is steady, the accelerations of walking are not."""

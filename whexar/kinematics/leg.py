@@ -8,7 +8,8 @@ trochanter, femur, tibia, tarsus, radians:
 * tarsus = −π/2 − femur − tibia keeps the last segment parallel to gravity
   (eq. 4.19), which is how every row of Table 6.5 was computed;
 * trochanter = body pitch (eq. 4.18): it turns the whole leg about its own
-  long axis so the leg plane stays vertical when the body pitches.
+  long axis so the leg plane stays vertical when the body pitches, carrying the
+  foot along with it (:func:`trochanter_arc`).
 
 Points are in the leg frame of :mod:`whexar.kinematics.geometry` (x outward,
 y down, z forward; metres). The *target* point of the IK is the tarsus joint,
@@ -234,6 +235,38 @@ def ik_point(
             return _ik_tuple(ik((x, y, z), g, pitch=pitch, target=target))
         out.append(a)
     return out[0], out[1], out[2], out[3], out[4]
+
+
+def trochanter_arc(
+    point: tuple[float, float, float], pitch: float, depth: float | None = None
+) -> tuple[float, float, float]:
+    """Where the trochanter at ``pitch`` carries the foot at ``point`` (leg frame, m).
+
+    The thesis's IK (eq. 4.7–4.17) solves coxa, femur and tibia in the leg's plane and
+    leaves the trochanter out, so turning the trochanter to the body pitch (eq. 4.18)
+    turns the whole leg about its long axis and carries the foot on an arc: a foot
+    ``depth`` below the axis (default: the point's own y) moves by depth·sin θ₁ forward
+    (the leg frame's z) and up by depth·(1 − cos θ₁). With the body nose up on a slope
+    (θ₁ < 0) that carries the feet downhill, under the centre of mass.
+
+    Two choices, each measured (docs/slopes.md):
+
+    * the arc is drawn about the leg's mount axis (its long axis at coxa 0), so every
+      foot moves along the body's x, the support polygon shifted whole; the real axis
+      turns with the coxa, which at the front and rear legs' ±25° would spread the
+      front feet and narrow the rear ones;
+    * the stride is not turned with it: the point moves by the arc of the ground it
+      stands on, so a foot on the ground moves parallel to the ground (the "arc" of the
+      slopes note), where the thesis's robot tilted its stride with the leg.
+
+    For a foot in the middle legs' plane (coxa 0) on the ground this is exactly the
+    rigid leg of the thesis (tested).
+    """
+    x, y, z = point
+    if pitch == 0.0:
+        return x, y, z
+    d = y if depth is None else depth
+    return x, y - d * (1.0 - math.cos(pitch)), z + d * math.sin(pitch)
 
 
 @functools.lru_cache(maxsize=16)

@@ -170,6 +170,26 @@ def support_margin(points: list[tuple[float, float]], cog: tuple[float, float]) 
     return best if inside else -best
 
 
+def gravity_cog(
+    cog: tuple[float, float], height: float, roll: float, pitch: float
+) -> tuple[float, float]:
+    """The CoG projected along gravity onto the support plane (3.2.2), in the plane's frame.
+
+    ``cog`` is the CoG's (x, y) and ``height`` (m) its height above the support plane,
+    both in a frame fixed to that plane (x forward, y left, z up), which gravity sees at
+    ``roll`` and ``pitch`` (rad; pitch positive nose down, R = R_y(pitch)·R_x(roll) as in
+    :class:`~whexar.kinematics.body.BodyPose`). Gravity in that frame is
+    g = Rᵀ·(0, 0, −1) = (sin p, −cos p·sin r, −cos p·cos r); the CoG falls along it to the
+    plane, h·(tan p / cos r, −tan r) from its foot. On a slope the supports must enclose
+    that point, not the one straight below the body: climbing nose up (p < 0) it moves
+    downhill, h·tan|p| towards the rear legs. On the flat it is ``cog`` itself.
+    """
+    if pitch == 0.0 and roll == 0.0:
+        return cog
+    cos_r = math.cos(roll)
+    return cog[0] + height * math.tan(pitch) / cos_r, cog[1] - height * math.tan(roll)
+
+
 def convex_hull(points: Iterable[tuple[float, float]]) -> list[tuple[float, float]]:
     """Counter-clockwise hull vertices of 2-D points (Andrew's monotone chain), in plain
     Python; collinear points dropped, so points on one line give its two ends."""
@@ -196,6 +216,7 @@ def _cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float
 __all__ = [
     "MIN_SUPPORTS",
     "convex_hull",
+    "gravity_cog",
     "static_stability_margin",
     "static_stability_margins",
     "support_margin",

@@ -271,6 +271,8 @@ class SimWorld:
         self.dead_ir: set[int] = set()
         """Rangefinders (0 right, 1 left) that read 0 counts: no reading."""
         self.fsr_counts: list[int] = [0] * 6
+        self.contact_forces: list[float] = [0.0] * 6
+        """Each leg's wheel's normal force on the ground (N), as the force sensors see it."""
         self.ir_counts: list[int] = [0, 0]
         if board is not None:
             board.script = self._board_inputs
@@ -467,6 +469,7 @@ class SimWorld:
                 continue
             mujoco.mj_contactForce(m, d, k, wrench)
             forces[leg] += abs(float(wrench[0]))  # the normal force, in the contact frame
+        self.contact_forces = forces
         self.fsr_counts = [0 if i in self.dead_fsr else fsr_counts(f) for i, f in enumerate(forces)]
         geom = self._ray_geom
         ir = self.cfg.ir

@@ -316,3 +316,35 @@ def test_the_wheel_steers_to_the_heading_less_the_coxa_and_stops_in_the_air() ->
     assert leg.angles is not None
     assert by_joint[5].position_rad == pytest.approx(0.3 - leg.angles[0])  # s·ψ − coxa, s = 1
     assert by_joint[6].velocity_rad_s == pytest.approx(0.1 / GEOMETRY.wheel_radius)
+
+
+def test_the_trochanter_carries_the_foot_on_its_arc() -> None:
+    # Nose up on 32°: the trochanter turns to the pitch and the foot goes where the
+    # thesis's leg puts it, back and up by the arc (kinematics.leg.trochanter_arc).
+    leg, angles = placed()
+    theta = math.radians(-32.0)
+    motion = BodyMotion(
+        t=1.1,
+        source="coordinator",
+        cycle=55,
+        twist=(0.0, 0.0, 0.0),
+        pose=(0.0,) * 6,
+        trochanter_rad=theta,
+        upside_down=False,
+        steer=False,
+        wheel_heading_rad=(0.0,) * 6,
+        wheel_speed_m_s=(0.0,) * 6,
+    )
+    leg.cycle(1.1, states(1.1, angles, femur_a=LOADED_A), motion=motion)
+    assert leg.angles is not None
+    assert leg.angles[1] == pytest.approx(theta)
+    foot = leg.frame.from_leg(fk_point(leg.angles, GEOMETRY))
+    depth = leg.frame.to_leg(NEUTRAL)[1]
+    expected = (
+        NEUTRAL[0] + depth * math.sin(theta),
+        NEUTRAL[1],
+        NEUTRAL[2] + depth * (1 - math.cos(theta)),
+    )
+    assert foot == pytest.approx(expected, abs=1e-6)
+    # What the leg says is its plan, in the upright frame, which the arc does not change.
+    assert leg.foot == pytest.approx(NEUTRAL)

@@ -263,3 +263,41 @@ def test_too_fast_a_walk_is_clamped_once_per_command() -> None:
     (clamped,) = [e for e in said if isinstance(e, CommandClamped)]
     assert clamped.field == "speed"
     assert 0.0 < clamped.applied < 5.0
+
+
+def _tilted(planner: LocomotionPlanner, pitch: float) -> None:
+    """The planner settled on ground tilted by ``pitch`` (its low-pass run out)."""
+    planner.tilt_pitch = pitch
+    planner.tilt_measured = (0.0, pitch)
+
+
+def test_on_a_slope_the_margin_projects_the_cog_along_gravity() -> None:
+    # Nose up on 23° without the trochanter: the CoG falls 0.29 m · tan 23° = 123 mm
+    # behind the body centre, and a tripod's margin is the slopes note's 158 − 233·tan θ.
+    planner, legs = standing()
+    planner.loco = planner.loco.model_copy(update={"trochanter_follows_pitch": False})
+    flat = planner.margin([0, 3, 4])
+    assert flat == pytest.approx(0.158, abs=0.002)
+    _tilted(planner, math.radians(-23.0))
+    drive(planner, legs, 3.0, 3.05)
+    assert planner.trochanter_rad == 0.0
+    assert planner.margin([0, 3, 4]) == pytest.approx(
+        0.158 - 0.233 * math.tan(math.radians(23)), abs=0.003
+    )
+
+
+def test_the_trochanter_arc_brings_the_feet_back_under_the_cog() -> None:
+    # With the trochanter the feet move downhill by depth·sin θ: most of the margin returns.
+    planner, legs = standing()
+    _tilted(planner, math.radians(-23.0))
+    drive(planner, legs, 3.0, 3.05)
+    assert planner.trochanter_rad == pytest.approx(math.radians(-23.0))
+    without = 0.158 - 0.233 * math.tan(math.radians(23))
+    assert planner.margin([0, 3, 4]) > without + 0.08
+
+
+def test_the_trochanter_follows_the_pitch_up_to_its_configured_limit() -> None:
+    planner, legs = standing()
+    _tilted(planner, math.radians(-70.0))
+    drive(planner, legs, 3.0, 3.05)
+    assert planner.trochanter_rad == pytest.approx(-math.radians(CFG.locomotion.max_trochanter_deg))

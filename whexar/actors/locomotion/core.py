@@ -21,6 +21,7 @@ from typing import Final
 import numpy as np
 
 from whexar.actors.locomotion.activity import Activity, checked
+from whexar.actors.locomotion.frames import LegFrame
 from whexar.actors.locomotion.intent import Wanted
 from whexar.actors.messages import LocomotionChanged, StepCommand, Vec3
 from whexar.bus import control_table as ct
@@ -34,8 +35,8 @@ from whexar.kinematics.body import (
     workspace_step,
 )
 from whexar.kinematics.gait import GAITS, Gait
-from whexar.kinematics.leg import ik
-from whexar.kinematics.stability import support_margin
+from whexar.kinematics.leg import ik, trochanter_arc
+from whexar.kinematics.stability import gravity_cog, support_margin
 from whexar.kinematics.wheels import wheel_twist
 from whexar.robot import N_LEGS
 from whexar.runtime.messages import Message
@@ -95,6 +96,12 @@ class PlannerCore:
         self.height = cfg.stance(self.stance_name).height
         self.neutral_points: list[Vec3] = self.neutral(cfg.stance(self.stance_name))
         self.pose_now: tuple[float, ...] = (0.0,) * 6
+        self.trochanter_rad = 0.0
+        """The trochanter angle last said (eq. 4.18): it carries the feet on their arcs."""
+        self.ground_tilt = (0.0, 0.0)
+        """(roll, pitch) of the ground under the feet as gravity sees it (rad)."""
+        self.frames = [LegFrame(self.geometry, i) for i in range(N_LEGS)]
+        """The legs' frames on the feet, without the body pose: where the arcs are drawn."""
         self.pending_moves: list[tuple[int, Vec3, float]] = []
         self.pending_duration = 0.0
         self._workspace: dict[tuple[str, bool], float] = {}
@@ -167,11 +174,30 @@ class PlannerCore:
         return [(float(f[0]), sign * float(f[1]), -h) for f in feet]
 
     def margin(self, down: list[int]) -> float:
-        """The static stability margin of the feet of legs ``down`` (3.2.2), CoG at the
-        body centre; a leg never placed counts at its neutral point."""
+        """The static stability margin of the feet of legs ``down`` (3.2.2); a leg never
+        placed counts at its neutral point.
+
+        The feet are where the trochanter carries them (:func:`trochanter_arc`, as the
+        legs place them), and the CoG, at the body centre, is projected along gravity
+        onto their plane (:func:`gravity_cog`): on a slope the point the supports must
+        enclose lies downhill of the one straight below the body."""
         feet, neutral = self.feet, self.neutral_points
-        points = [(p[0], p[1]) for p in (feet[i] or neutral[i] for i in down)]
-        return support_margin(points, (self.pose_now[0], self.pose_now[1]))
+        theta = self.trochanter_rad
+        points: list[tuple[float, float]] = []
+        ground = 0.0
+        frames = self.frames
+        for i in down:
+            x, y, z = feet[i] or neutral[i]
+            if theta != 0.0 and not self.upside_down:
+                x, y, z = frames[i].from_leg(trochanter_arc(frames[i].to_leg((x, y, z)), theta))
+            points.append((x, y))
+            ground += z
+        pose = self.pose_now
+        roll, pitch = self.ground_tilt
+        cog = (pose[0], pose[1])
+        if points and (roll != 0.0 or pitch != 0.0):
+            cog = gravity_cog(cog, pose[2] - ground / len(points), roll, pitch)
+        return support_margin(points, cog)
 
     def away(self, leg: int, target: Vec3) -> bool:
         """Whether ``leg``'s foot is more than :data:`PLACED_M` from ``target``."""

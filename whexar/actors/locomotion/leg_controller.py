@@ -22,7 +22,9 @@ In a cycle the leg
    report, so it never passes outside the limits);
 2. turns the foot into joint angles: body pose (eq. 3 of Diosdado 2014,
    3.2), leg frame, inverse kinematics (eq. 4.7–4.19) with the trochanter at
-   the angle the coordinator gives (the body pitch, eq. 4.18). An IK that
+   the angle the coordinator gives (the body pitch, eq. 4.18), which carries
+   the foot on its arc as the thesis's leg does (the stride stays parallel to
+   the ground; :func:`~whexar.kinematics.leg.trochanter_arc`). An IK that
    fails holds the last good pose and says so (:class:`IkFailed`);
 3. applies the overrides (below): the leg alone decides each of its joints'
    goals;
@@ -77,7 +79,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import ContactSource, RobotConfig
 from whexar.errors import KinematicsError
-from whexar.kinematics.leg import fk_point, ik_point
+from whexar.kinematics.leg import fk_point, ik_point, trochanter_arc
 from whexar.kinematics.trajectory import SwingOutcome, min_jerk, swing_table
 from whexar.robot import N_JOINTS
 from whexar.runtime.messages import Message
@@ -268,10 +270,19 @@ class LegController:
 
     # ----------------------------------------------------------------- IK and goals
 
-    def _solve(self, p: list[float] | tuple[float, float, float]) -> list[float] | None:
+    def _solve(
+        self, p: list[float] | tuple[float, float, float], ground_z: float | None = None
+    ) -> list[float] | None:
+        """Joint angles for foot point ``p`` (upright frame), the trochanter carrying the
+        foot on its arc (:func:`trochanter_arc`) about the point on the ground below it:
+        ``ground_z`` is the ground's height there (``None``: ``p`` is on the ground)."""
         pitch = 0.0 if self.frame.upside_down or self.flip is not None else self.trochanter
+        q = self.frame.to_leg(p)
+        if pitch != 0.0:
+            depth = None if ground_z is None else self.frame.to_leg((p[0], p[1], ground_z))[1]
+            q = trochanter_arc(q, pitch, depth)
         try:
-            solution = ik_point(self.frame.to_leg(p), self.geometry, pitch=pitch, target="contact")
+            solution = ik_point(q, self.geometry, pitch=pitch, target="contact")
         except KinematicsError as exc:
             if self.ik_ok:
                 self.ik_ok = False
@@ -401,7 +412,10 @@ class LegController:
             angles = list(self.angles)
             phase = "flip"
         else:
-            angles = self._solve(self.foot)
+            # A foot in the air (a swing, a lifted move) takes the arc of the ground it
+            # lands on: its path keeps its shape, shifted as the stance feet are.
+            ground = step.target[2] if step is not None and step.height > 0.0 else None
+            angles = self._solve(self.foot, ground)
         if angles is None:
             angles = self.angles
             if angles is None:

@@ -53,8 +53,6 @@ from whexar.kinematics.gait import GAITS
 from whexar.robot import N_LEGS
 from whexar.runtime.messages import Message
 
-MAX_TROCHANTER: Final = math.radians(45.0)
-"""The trochanter follows the pitch up to this; IK needs it strictly inside ±90° (eq. 4.18)."""
 CONTACT_GRID_M: Final = 0.005
 """Measured feet are rounded to this grid before the wheels' kinematics use them."""
 BUS_SILENT_S: Final = 0.2
@@ -75,7 +73,9 @@ class LocomotionPlanner(Engines):
         super().__init__(cfg, name=name)
         self.report = report
         self.tilt_pitch = 0.0
-        self.tilt_measured = 0.0
+        self.tilt_roll = 0.0
+        self.tilt_measured = (0.0, 0.0)
+        self.max_trochanter = math.radians(self.loco.max_trochanter_deg)
         self.last_t: float | None = None
         self.last_states_t = -math.inf
         self.cycle_no = 0
@@ -182,9 +182,10 @@ class LocomotionPlanner(Engines):
         """The measured pitch, low-passed: the trochanters follow a slope, not the shakes of
         each step (an accelerometer reads the body's accelerations as tilt too)."""
         if tilt is not None:
-            self.tilt_measured = tilt.pitch_rad
+            self.tilt_measured = (tilt.roll_rad, tilt.pitch_rad)
         k = min(1.0, dt / self.loco.tilt_filter_s)
-        self.tilt_pitch += (self.tilt_measured - self.tilt_pitch) * k
+        self.tilt_roll += (self.tilt_measured[0] - self.tilt_roll) * k
+        self.tilt_pitch += (self.tilt_measured[1] - self.tilt_pitch) * k
 
     def _take_legs(self, legs: Iterable[LegState]) -> None:
         for s in legs:
@@ -280,9 +281,15 @@ class LocomotionPlanner(Engines):
         trochanter = 0.0
         if self.loco.trochanter_follows_pitch and not self.upside_down:
             # eq. 4.18: the legs turn with the body's pitch, commanded and measured.
-            trochanter = min(
-                max(self.pose_now[4] + self.tilt_pitch, -MAX_TROCHANTER), MAX_TROCHANTER
-            )
+            limit = self.max_trochanter
+            trochanter = min(max(self.pose_now[4] + self.tilt_pitch, -limit), limit)
+        self.trochanter_rad = trochanter
+        # The ground as gravity sees it: the body's measured tilt less its pose on the feet.
+        self.ground_tilt = (
+            (0.0, 0.0)
+            if self.upside_down
+            else (self.tilt_roll - self.pose_now[3], self.tilt_pitch - self.pose_now[4])
+        )
         self.say(
             BodyMotion(
                 t=self.t,

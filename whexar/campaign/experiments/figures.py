@@ -32,8 +32,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final, TypeAlias
 
 from whexar.actors.locomotion.intent import POSE_LIMIT_RAD
-from whexar.actors.locomotion.planner import MAX_TROCHANTER
 from whexar.campaign.experiments.reference import Reference, Rules, Single, Why, reference
+from whexar.config.motion import LocomotionSpec
 
 if TYPE_CHECKING:
     from whexar.campaign.rows import Row
@@ -47,8 +47,8 @@ TROCHANTER_KEY: Final = "config.locomotion.trochanter_follows_pitch"
 MAX_BODY_PITCH_DEG: Final = math.degrees(POSE_LIMIT_RAD)
 """The coordinator's limit on a commanded body pitch: stance No. 2 levels the body by
 pitching it, so it cannot be expressed on steeper slopes."""
-MAX_TROCHANTER_DEG: Final = math.degrees(MAX_TROCHANTER)
-"""The coordinator's limit on the trochanter's follow of the pitch."""
+MAX_TROCHANTER_DEG: Final = float(LocomotionSpec.model_fields["max_trochanter_deg"].default)
+"""The coordinator's default limit on the trochanter's follow of the pitch."""
 
 NOT_SIMULATED: Final = "not simulated"
 NO_VALUE: Final = "no value: the run failed or the figure is undefined for it"
