@@ -53,6 +53,7 @@ from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sim.faults import SensorFault
 from whexar.sim.model import TIMESTEP_S, load_model
 from whexar.sim.terrain import Floor, Terrain
+from whexar.sim.tilt import BoardTilt
 from whexar.sim.world import SimWorld
 
 if TYPE_CHECKING:
@@ -210,13 +211,15 @@ def simulate(
     record: str | Path | None = None,
     record_metadata: Mapping[str, str] | None = None,
     live: LiveSink | None = None,
+    tilt: BoardTilt | None = None,
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
     ``config`` is the robot configuration file (the world and every actor read it);
     ``faults`` a bus fault plan and ``sensor_faults`` the sensors' (:mod:`whexar.sim.faults`);
     ``start`` is (x, y, yaw) of the body on the ground; ``on_sample`` is called with every
-    sample (progress lines, video frames).
+    sample (progress lines, video frames); ``tilt`` raises the board the robot is on
+    (:mod:`whexar.sim.tilt`).
 
     ``record`` is an MCAP file to record the run into (:mod:`whexar.record`): every
     message, the bytes of the servo bus and the sensor link, the body's pose on ``/tf``,
@@ -236,7 +239,7 @@ def simulate(
     chip = FakeLsm9ds1()
     i2c = FakeSMBus(cfg.imu.i2c_bus)
     i2c.attach(cfg.imu.address, chip)
-    world = SimWorld(model, chain, cfg=cfg, board=board, imu=chip)
+    world = SimWorld(model, chain, cfg=cfg, board=board, imu=chip, tilt=tilt)
     x0, y0, yaw0 = start
     seat = cfg.locomotion.sit_height_mm / 1000 + 0.002
     # Seated on the ground where the start is: parallel to a slope, turned by the yaw.

@@ -45,6 +45,10 @@ stances of the scenario's configuration), a turn radius inside the body,
 riding upside down. Speeds beyond the robot's are not errors: the coordinator
 clamps them and says so with an event, as on the robot.
 
+*Tilt.* ``[tilt]`` raises the board under the robot as the thesis's slope
+experiments did (6.7.6): gravity turns about y from ``start_s`` at ``rate_deg_s``
+up to ``max_deg`` (:mod:`whexar.sim.tilt`).
+
 *Paths* (``faults``, ``config``) are relative to the scenario file's folder.
 
 *Seed.* The world is deterministic on virtual time; the seed places the
@@ -81,6 +85,7 @@ from whexar.runtime.schema import (
 )
 from whexar.sim import terrain as tr
 from whexar.sim.faults import SensorFault
+from whexar.sim.tilt import BoardTilt
 
 if TYPE_CHECKING:
     from whexar.record.writer import LiveSink
@@ -185,6 +190,19 @@ class TerrainSpec(Section):
         return self.rocks.problems(f"{at}.rocks") if self.rocks is not None else []
 
 
+class TiltSpec(Section):
+    """The board raised under the robot (:class:`whexar.sim.tilt.BoardTilt`), as the thesis
+    found its steepest slopes (6.7.6): rising along +x from ``start_s`` at ``rate_deg_s``
+    up to ``max_deg``."""
+
+    start_s: NonNegative = 6.0
+    rate_deg_s: float = Field(default=1.0, gt=0, le=10, allow_inf_nan=False)
+    max_deg: float = Field(default=55.0, gt=0, lt=90, allow_inf_nan=False)
+
+    def board(self) -> BoardTilt:
+        return BoardTilt(self.start_s, self.rate_deg_s, self.max_deg)
+
+
 class StartSpec(Section):
     """Where the robot starts, seated: the body centre over the floor and its heading."""
 
@@ -215,6 +233,8 @@ class ScenarioFile(CheckedSection):
     """The sensors' faults (:mod:`whexar.sim.faults`), ``[[sensor_faults]]`` tables."""
     config: str | None = Field(default=None, min_length=1)
     """A robot configuration file, relative to the scenario's folder; absent: the defaults."""
+    tilt: TiltSpec | None = None
+    """The board raised under the robot, ``[tilt]``; absent: the floor stays as it is."""
 
     def problems(self, at: str = "") -> list[Problem]:
         found: list[Problem] = []
@@ -290,6 +310,7 @@ class Scenario:
             on_sample=on_sample,
             record=record,
             live=live,
+            tilt=self.spec.tilt.board() if self.spec.tilt is not None else None,
             record_metadata={
                 "scenario": self.name,
                 "seed": str(self.seed),

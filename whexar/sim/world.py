@@ -67,6 +67,7 @@ from whexar.sensors.board_emulator import (
 from whexar.sensors.frame import ACC_KEYS, FSR_KEYS, IR_KEYS
 from whexar.sensors.imu_emulator import FakeLsm9ds1
 from whexar.sim.motors import MAX_DUTY, MOTORS, PWM_LIMIT, TICKS_PER_RAD, position_duty_per_rad
+from whexar.sim.tilt import BoardTilt
 
 _GAINS_SPAN: Final = slice(76, 86)
 """Velocity I (76), Velocity P (78) … Position P Gain (84): the gain registers (e-manual)."""
@@ -158,9 +159,13 @@ class SimWorld:
         cfg: RobotConfig | None = None,
         board: SensorBoardEmulator | None = None,
         imu: FakeLsm9ds1 | None = None,
+        tilt: BoardTilt | None = None,
     ) -> None:
         self.cfg = cfg or RobotConfig()
         self.model = model
+        self.tilt = tilt
+        """The board's tilt (:mod:`whexar.sim.tilt`): gravity turns with it."""
+        self._g = float(np.linalg.norm(model.opt.gravity))
         self.data = mujoco.MjData(model)
         self.chain = chain
         self.board = board
@@ -332,6 +337,8 @@ class SimWorld:
             return
         self._orders()
         m, d, h = self.model, self.data, self.h
+        if self.tilt is not None:  # a board raised by degrees a second: per transaction
+            m.opt.gravity[:] = self.tilt.gravity(self.time, self._g)
         qadr, dadr, act = self._qadr, self._dadr, self._act
         start, w0 = self.time, d.qvel[dadr].copy()  # a view when dadr is a slice
         while self.time + h <= t + 1e-12:

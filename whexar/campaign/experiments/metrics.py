@@ -278,6 +278,56 @@ for _name in PER_JOINT:
         f"current of the six {_name} servos (eq. 6.1, summed), as the bus reads it",
     )(_joint_current(JOINT_NAMES.index(_name)))
 
+TILT_SPAN_S: Final = 2.0
+"""The tilting board (6.7.6): the robot must hold or keep climbing over every span this long
+(a gait cycle and more; at 1°/s the board rises 2° in it)."""
+TILT_SLIDE_M: Final = 0.02
+"""A stance failed when the body moved more than this in a span (the rules' ``max_slide_m``)."""
+TILT_PROGRESS_FRACTION: Final = 0.25
+"""A movement failed when it climbed at less than this share of its speed on the level
+board (the rules' ``min_progress_fraction``)."""
+TILT_TURN_DEG: Final = 30.0
+"""… or turned further than this from its heading (the rules' ``max_heading_change_deg``)."""
+STILL_MPS: Final = 0.01
+"""Slower than this on the level board: the run is a stance."""
+
+
+@metric(
+    "tilt_limit_deg",
+    "°",
+    "the tilting board (6.7.6): the board's angle at the start of the first 2 s span in "
+    "which the robot fell, turned > 30°, slid > 2 cm (standing) or climbed at < 25 % of its "
+    "speed on the level board (moving); when it never failed, the board's last angle",
+)
+def tilt_limit_deg(result: SimResult, window: Window) -> Value:
+    """The steepest board angle (°) the run held, raised under it (:mod:`whexar.sim.tilt`)."""
+    tilt = result.world.tilt
+    s = window.samples(result)
+    if tilt is None or len(s) < 2 or s[0].t >= tilt.start_s:
+        return None
+    level = [x for x in s if x.t <= tilt.start_s]
+    speed = _along_plane(level[0], level[-1]) / max(level[-1].t - level[0].t, 1e-9)
+    moving = speed >= STILL_MPS
+    yaw = _unwrapped_yaw(s)
+    start = 0
+    for k, b in enumerate(s):
+        if b.t < tilt.start_s + TILT_SPAN_S:
+            continue
+        while s[start].t < b.t - TILT_SPAN_S - 1e-9:
+            start += 1
+        a = s[start]
+        if moving:
+            failed = _along_plane(a, b) / (b.t - a.t) < TILT_PROGRESS_FRACTION * speed
+        else:
+            failed = math.dist((a.x, a.y, a.z), (b.x, b.y, b.z)) > TILT_SLIDE_M
+        failed = (
+            failed or b.tilt > FALLEN_TILT_RAD or math.degrees(abs(yaw[k] - yaw[0])) > TILT_TURN_DEG
+        )
+        if failed:
+            return tilt.angle_deg(a.t)
+    return tilt.angle_deg(s[-1].t)
+
+
 __all__ = [
     "CIRCLE_LAPS",
     "PER_JOINT",
@@ -289,6 +339,7 @@ __all__ = [
     "max_heading_change_deg",
     "spin_rpm",
     "thesis_cost_of_transport",
+    "tilt_limit_deg",
     "time_to_2m_s",
     "top_speed_mps",
     "total_current_a",
