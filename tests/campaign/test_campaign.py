@@ -19,7 +19,7 @@ SMALL = """
 name = "small"
 description = "Four runs of 2 s: two slopes, two stand-up times."
 scenario = "wheels"
-metrics = ["distance_m", "speed_mps", "mean_current_a", "max_tilt_deg", "events"]
+metrics = ["progress_m", "distance_m", "speed_mps", "mean_current_a", "max_tilt_deg", "events"]
 timeout_s = 300
 measure = { from_s = 0.5 }
 
@@ -191,7 +191,7 @@ def test_the_process_pool_runs_every_variation(pool_run: tuple[Path, list[Row]])
     assert [r.outcome for r in rows] == ["ok"] * 4
     assert len({r.state_hash for r in rows}) == 4  # every variation changes the run
     flat, slope = rows[0], rows[2]
-    assert flat.metrics["distance_m"] < 1e-6 < slope.metrics["max_tilt_deg"]  # type: ignore[operator]
+    assert flat.metrics["progress_m"] < 1e-6 < slope.metrics["max_tilt_deg"]  # type: ignore[operator]
     for name in ("results.json", "results.csv", "summary.md", "metrics.png", RUNS_FILE):
         assert (out / name).is_file(), name
     doc = json.loads((out / "results.json").read_text())

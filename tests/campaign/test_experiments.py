@@ -29,6 +29,7 @@ from whexar.campaign.experiments import (
 )
 from whexar.sim.run import Sample, SimResult
 from whexar.sim.scenario import parse_scenario
+from whexar.sim.series import RunSeries
 
 TRIPOD_CMD = [{"t": 3.0, "gait": "tripod", "vx_m_s": 0.12}]
 RIDE_CMD = [{"t": 3.0, "mode": "ride", "vx_m_s": 0.2}]
@@ -243,15 +244,8 @@ def test_gait_period_from_the_legs_swings() -> None:
             phase = "swing" if t >= first - 1e-9 and ((t - first) % 1.6) < 0.8 - 1e-9 else "stance"
             log.append(state(t, leg, phase))
 
-    class _Log:
-        def messages(self, channel: str | None = None, *, of: type[Any]) -> list[Any]:
-            return [m for m in log if isinstance(m, of)]
-
-    class _Run:
-        log = _Log()
-
     class _Result:
-        run = _Run()
+        series = RunSeries.of(("legs", m) for m in log)
 
     result: SimResult = _Result()  # type: ignore[assignment]
     assert gait_period_s(result, Window()) == pytest.approx(1.6)

@@ -29,6 +29,7 @@ from whexar.config import RobotConfig
 from whexar.runtime.messages import Event, SafeStop, StopRequested
 from whexar.runtime.wiring import EVENTS_CHANNEL
 from whexar.sim.run import Sample, SimResult, simulate
+from whexar.sim.series import RunSeries
 from whexar.sim.world import SimWorld
 from whexar.testing import LogEntry, MessageLog, RunResult
 from whexar.testing.walk import command
@@ -112,6 +113,7 @@ def _fake(
         duration_s=END,
         mass_kg=5.0,
         events=log.events(),
+        series=RunSeries.of((e.channel, e.message) for e in entries),
     )
 
 

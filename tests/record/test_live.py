@@ -86,7 +86,7 @@ class Client(threading.Thread):
 
 @pytest.mark.slow
 def test_a_live_run_reaches_a_client_and_nothing_the_client_sends_reaches_the_run() -> None:
-    plain = simulate(commands=COMMANDS, duration=2.0)
+    plain = simulate(commands=COMMANDS, duration=2.0, keep_log=True)
     with LiveView(port=0) as live:
         client = Client(live.url)
         client.start()
@@ -94,7 +94,9 @@ def test_a_live_run_reaches_a_client_and_nothing_the_client_sends_reaches_the_ru
         # Paced to real time, as `whexar sim --live` is: a client subscribes to a topic when
         # it is advertised, and what is published before that is not for it. Unpaced on a
         # busy machine, the whole run could be over before the client had subscribed.
-        served = simulate(commands=COMMANDS, duration=2.0, live=live, on_sample=Pace())
+        served = simulate(
+            commands=COMMANDS, duration=2.0, live=live, on_sample=Pace(), keep_log=True
+        )
         client.stop.set()
         client.join(10)
     assert client.info["op"] == "serverInfo"

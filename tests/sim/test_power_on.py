@@ -12,7 +12,9 @@ def test_torque_on_holds_the_seated_robot_still() -> None:
     # found them: no jolt (it used to throw the body 18 mm up, at 435 W) and the IMU
     # never reads the robot upside down.
     samples: list[tuple[float, float, float]] = []
-    result = simulate(duration=0.6, on_sample=lambda s, _w: samples.append((s.t, s.z, s.power_w)))
+    result = simulate(
+        duration=0.6, on_sample=lambda s, _w: samples.append((s.t, s.z, s.power_w)), keep_log=True
+    )
     # Until the coordinator starts to stand it up, half a second in.
     before = [(z, power) for t, z, power in samples if t <= 0.5]
     seated = before[0][0]

@@ -20,9 +20,9 @@ COMMANDS = [(2.5, command(mode="ride", vx_m_s=0.1))]
 
 @pytest.mark.slow
 def test_recording_changes_nothing_and_holds_every_message_and_byte(tmp_path: Path) -> None:
-    plain = simulate(commands=COMMANDS, duration=3.0)
+    plain = simulate(commands=COMMANDS, duration=3.0, keep_log=True)
     path = tmp_path / "run.mcap"
-    recorded = simulate(commands=COMMANDS, duration=3.0, record=path)
+    recorded = simulate(commands=COMMANDS, duration=3.0, record=path, keep_log=True)
     assert recorded.world.state_hash() == plain.world.state_hash()
     assert recorded.run.digest == plain.run.digest
     assert recorded.recording == path

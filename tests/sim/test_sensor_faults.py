@@ -28,7 +28,7 @@ DOC = {
 
 @pytest.mark.slow
 def test_sensor_faults_reach_the_readers() -> None:
-    result = parse_scenario(DOC, "<test>").run()
+    result = parse_scenario(DOC, "<test>").run(keep_log=True)
     events = result.run.log.events()
 
     def at(kind: type, link: str) -> list[float]:
@@ -74,7 +74,7 @@ def test_a_bus_fault_plan_reaches_the_simulated_servos() -> None:
     from whexar.actors.messages import BusLost, ServoFault
     from whexar.sim.run import simulate
 
-    result = simulate(duration=3.0, faults="config/faults/dead-femur.toml")
+    result = simulate(duration=3.0, faults="config/faults/dead-femur.toml", keep_log=True)
     faults = result.run.log.events(of=ServoFault)
     assert faults
     assert {f.servo_id for f in faults} == {3}

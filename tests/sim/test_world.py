@@ -118,8 +118,8 @@ def flat_walk() -> SimResult:
 
 @pytest.mark.slow
 def test_the_same_run_gives_the_same_state_bit_for_bit() -> None:
-    a = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0)
-    b = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0)
+    a = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0, keep_log=True)
+    b = simulate(commands=[(2.5, command(vx_m_s=0.08))], duration=4.0, keep_log=True)
     assert a.world.state_hash() == b.world.state_hash()
     assert a.run.log.digest() == b.run.log.digest()
 

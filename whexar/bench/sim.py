@@ -43,7 +43,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, Final, TypeVar
 
-from whexar.actors.messages import ServoStates
 from whexar.bench import Figure, Progress, Report
 from whexar.bus.sdk import DxlBus, InlinePortOwner
 from whexar.sim.scenario import DEFAULT_SCENARIO, load_scenario
@@ -122,7 +121,7 @@ def measure(seconds: float = BENCH_SECONDS, scenario: str = DEFAULT_SCENARIO) ->
     chosen = load_scenario(scenario).with_overrides(duration_s=seconds)
     with timed_parts() as timers:
         result = chosen.run()
-    cycles = max(1, len(result.run.log.messages("servo-state", of=ServoStates)))
+    cycles = max(1, result.series.cycles)
     # The world is advanced by the servos' dynamics, inside the port jobs; whatever
     # advanced it outside a job (nothing, as wired today) still counts as physics.
     sensors = timers.sense

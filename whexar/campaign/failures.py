@@ -60,13 +60,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Final, cast
 
-from whexar.actors.messages import BusLost, LocomotionState, ServoDegraded, ServoFault
+from whexar.actors.messages import BusLost, ServoDegraded, ServoFault
 from whexar.bus.emulator.faults import FaultInjector
 from whexar.campaign.metrics import MetricFn, Value, Window, metric, path_speed
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.messages import ActorStopped, SafeStop, StopRequested
-from whexar.sim.run import FALLEN_TILT_RAD, SAMPLE_PERIOD_S, Quiet, travelled
+from whexar.sim.run import FALLEN_TILT_RAD, SAMPLE_PERIOD_S, Quiet, progress, travelled
+from whexar.sim.series import LocomotionPoint
 
 if TYPE_CHECKING:
     from whexar.campaign.rows import Row
@@ -198,9 +199,8 @@ def _after(result: SimResult, window: Window) -> tuple[Failure, list[Sample]] | 
     return (f, samples) if samples else None
 
 
-def _states(result: SimResult, t0: float, t1: float) -> list[LocomotionState]:
-    states = result.run.log.messages("locomotion", of=LocomotionState)
-    return [m for m in states if t0 - 1e-9 <= m.t <= t1 + 1e-9]
+def _states(result: SimResult, t0: float, t1: float) -> list[LocomotionPoint]:
+    return result.series.locomotion.between(t0, t1)
 
 
 # --------------------------------------------------------------------------- the metrics
@@ -243,6 +243,17 @@ def detected_after_s(result: SimResult, window: Window) -> Value:
 def distance_after_m(result: SimResult, window: Window) -> Value:
     found = _after(result, window)
     return None if found is None else travelled(found[1])
+
+
+@metric(
+    "progress_after_m",
+    "m",
+    "net progress: the body's displacement from the failure to the end (a robot treading "
+    "in place has a path, distance_after_m, and no progress)",
+)
+def progress_after_m(result: SimResult, window: Window) -> Value:
+    found = _after(result, window)
+    return None if found is None else progress(found[1])
 
 
 @metric(

@@ -11,8 +11,9 @@ generic ones of this module and those of the shipped campaigns'
 modules (:data:`METRIC_MODULES`), imported on first use so that a worker
 process has the same table as the parent.
 
-Every metric is deterministic: it reads the run's samples and message log,
-both on virtual time, never the wall clock. That is what lets a campaign give
+Every metric is deterministic: it reads the run's samples and the compact
+series of its messages (:class:`~whexar.sim.series.RunSeries`), both on
+virtual time, never the wall clock. That is what lets a campaign give
 the same rows, bit for bit, on local processes and on Ray.
 """
 
@@ -25,7 +26,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
-from whexar.actors.messages import LocomotionState, ServoStates
 from whexar.runtime.messages import ActorStopped, StopRequested
 from whexar.sim.run import FALLEN_TILT_RAD, Quiet, energy_j, travelled
 
@@ -115,8 +115,14 @@ def _summary(key: str) -> MetricFn:
 
 
 for _key, _unit, _text in (
-    ("distance_m", "m", "length of the body's path over the whole run"),
-    ("mean_speed_mps", "m/s", "distance over the time spent walking or riding"),
+    ("progress_m", "m", "net progress: the body's displacement from the run's start to its end"),
+    (
+        "progress_along_m",
+        "m",
+        "net progress along the course (the heading at the start), start to end of the run",
+    ),
+    ("distance_m", "m", "length of the body's path over the whole run, sway included"),
+    ("mean_speed_mps", "m/s", "path length (distance_m) over the time spent walking or riding"),
     ("energy_j", "J", "electric energy of the whole run"),
     ("cost_of_transport", "", "E / (m g d) over the whole run"),
     ("min_stability_margin_m", "m", "least static stability margin while on the legs"),
@@ -179,13 +185,14 @@ def servo_currents(result: SimResult, window: Window, joint: int | None = None) 
     bus read, by servo ID; ``joint`` keeps one joint of every leg (0 coxa … 6 wheel)."""
     sums: dict[int, float] = {}
     counts: dict[int, int] = {}
-    for msg in result.run.log.messages(of=ServoStates):
-        if not window.contains(msg.t):
+    inside = [k for k, t in enumerate(result.series.cycle_t) if window.contains(t)]
+    for sid, (j, amps) in result.series.servo_amps().items():
+        if joint is not None and j != joint:
             continue
-        for j in msg.joints:
-            if j.current_a is not None and (joint is None or j.joint == joint):
-                sums[j.servo_id] = sums.get(j.servo_id, 0.0) + abs(j.current_a)
-                counts[j.servo_id] = counts.get(j.servo_id, 0) + 1
+        for k in inside:
+            if not math.isnan(a := amps[k]):
+                sums[sid] = sums.get(sid, 0.0) + a
+                counts[sid] = counts.get(sid, 0) + 1
     return {k: sums[k] / counts[k] for k in sums}
 
 
@@ -222,7 +229,7 @@ for _attr, _what in (("x", "x"), ("y", "y"), ("z", "height")):
 
 @metric("final_activity", "", "what the coordinator was doing at the window's end")
 def final_activity(result: SimResult, window: Window) -> Value:
-    states = [m for m in result.run.log.messages(of=LocomotionState) if window.contains(m.t)]
+    states = [m for m in result.series.locomotion if window.contains(m.t)]
     return f"{states[-1].activity} {states[-1].mode}/{states[-1].gait}" if states else None
 
 

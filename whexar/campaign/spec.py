@@ -85,6 +85,7 @@ if TYPE_CHECKING:
 CAMPAIGN_DIR: Final = Path(__file__).resolve().parents[2] / "config" / "campaigns"
 """The shipped campaigns: the repository's ``config/campaigns`` folder."""
 DEFAULT_METRICS: Final = (
+    "progress_m",
     "distance_m",
     "speed_mps",
     "mean_power_w",

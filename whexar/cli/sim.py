@@ -13,14 +13,16 @@ outside a run, so the line shows the command timeline, not the coordinator's
 activity; the report's gait diagram has the activity. When stderr is no
 terminal, a line is printed every 10 s of simulated time instead.
 
-At the end: the summary as text, or with ``--json`` one JSON object with
-exactly :data:`SUMMARY_KEYS`, strict JSON: a figure with no finite value is ``null``
-(``cost_of_transport`` when the body did not move; ``min_stability_margin_m`` when the
-robot was never on its legs or, at some cycle, had fewer than three feet down and so no
-support polygon, which the text shows as −inf). ``--report DIR`` writes the plots and
-tables (:mod:`whexar.sim.report`), ``--video FILE.mp4`` renders the run headless
-(:mod:`whexar.sim.video`), ``--view`` shows it in MuJoCo's viewer, paced to
-real time, where a display exists.
+At the end: the summary as text, or with ``--json`` one JSON object with exactly
+:data:`SUMMARY_KEYS`: how far the robot got (``progress_m``, start to end;
+``progress_along_m``, along the course, the heading it started with), the length of
+its path (``distance_m``, sway included), … in strict JSON: a figure with no finite
+value is ``null`` (``cost_of_transport`` when the body did not move;
+``min_stability_margin_m`` when the robot was never on its legs or, at some cycle, had
+fewer than three feet down and so no support polygon, which the text shows as −inf).
+``--report DIR`` writes the plots and tables (:mod:`whexar.sim.report`), ``--video
+FILE.mp4`` renders the run headless (:mod:`whexar.sim.video`), ``--view`` shows it in
+MuJoCo's viewer, paced to real time, where a display exists.
 
 Every run is recorded (:mod:`whexar.record`): into ``--record FILE.mcap``, by
 default a new file under ``recordings/`` named after the scenario and the date;
@@ -68,6 +70,8 @@ if TYPE_CHECKING:
     from whexar.sim.world import SimWorld
 
 SUMMARY_KEYS: Final = (
+    "progress_m",
+    "progress_along_m",
     "distance_m",
     "mean_speed_mps",
     "energy_j",

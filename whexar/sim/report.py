@@ -21,10 +21,10 @@ Theory of operation
   electric power, the segments split at the scenario's command times (one
   segment per command; :func:`segments`).
 
-Everything is plotted from the message log and the samples; nothing is run
-again. The gait diagram, the joint angles and the currents are drawn by
-:mod:`whexar.record.plots` (which ``whexar plot`` draws a recording with), from the
-messages of the run's log; matplotlib draws with its Agg backend (no display).
+Everything is plotted from the run's series (:mod:`whexar.sim.series`, kept as the
+messages passed) and the samples; nothing is run again. The gait diagram, the joint
+angles and the currents are drawn by :mod:`whexar.record.plots` (which ``whexar plot``
+draws a recording with); matplotlib draws with its Agg backend (no display).
 """
 
 from __future__ import annotations
@@ -39,18 +39,11 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 
 from whexar import _json
-from whexar.actors.messages import (
-    JointGoals,
-    LegState,
-    LocomotionState,
-    MotionCommand,
-    ServoStates,
-)
+from whexar.actors.messages import MotionCommand
 from whexar.kinematics.stability import convex_hull
 from whexar.record import plots
 from whexar.record.plots import new_figure, save_figure
-from whexar.robot import LEG_NAMES
-from whexar.sim.run import travelled
+from whexar.sim.run import progress, travelled
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -77,9 +70,12 @@ class Segment:
     t1: float
     label: str
     distance_m: float
+    """Length of the body's path over the segment, sway included."""
     energy_j: float
     cost_of_transport: float | None
     """E / (m g d); ``None`` when it hardly moved (:data:`MIN_SEGMENT_SPEED_M_S`)."""
+    progress_m: float = 0.0
+    """Net displacement of the body from the segment's start to its end."""
 
     @property
     def mean_power_w(self) -> float:
@@ -87,12 +83,12 @@ class Segment:
         return self.energy_j / (self.t1 - self.t0) if self.t1 > self.t0 else 0.0
 
 
-def _travel(samples: Sequence[Sample], t0: float, t1: float) -> tuple[float, float]:
-    """Distance (m) and energy (J) over the samples in [t0, t1]."""
+def _travel(samples: Sequence[Sample], t0: float, t1: float) -> tuple[float, float, float]:
+    """Path length (m), energy (J) and net progress (m) over the samples in [t0, t1]."""
     inside = [s for s in samples if t0 - 1e-9 <= s.t <= t1 + 1e-9]
     distance = travelled(inside)
     energy = sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(inside))
-    return distance, energy
+    return distance, energy, progress(inside)
 
 
 def segments(
@@ -131,45 +127,40 @@ def segments(
         t1 = end if nxt is None else nxt[0]
         if t1 <= t0:
             continue
-        distance, energy = _travel(samples, t0, t1)
+        distance, energy, net = _travel(samples, t0, t1)
         travels = distance >= max(MIN_SEGMENT_DISTANCE_M, MIN_SEGMENT_SPEED_M_S * (t1 - t0))
         cot = energy / (mass_kg * G * distance) if travels else None
-        out.append(Segment(t0, t1, label, distance, energy, cot))
+        out.append(Segment(t0, t1, label, distance, energy, cot, net))
     return out
 
 
-# --------------------------------------------------------------------------- data from the log
-# The message-only parts live in whexar.record.plots, which `whexar plot` draws a recording
-# with; these take a SimResult's message log.
+# --------------------------------------------------------------------------- data from the series
+# The run keeps its messages as compact series (whexar.sim.series), built as the messages
+# passed with the same rules as whexar.record.plots, which `whexar plot` draws a recording with.
 
 
 def swing_intervals(result: SimResult) -> dict[int, list[tuple[float, float]]]:
     """Per leg, the (start, end) times it was in swing, from its LegState messages."""
-    return plots.swing_intervals(result.run.log.messages("legs", of=LegState))
+    return result.series.swing_intervals()
 
 
 def activity_intervals(result: SimResult) -> list[tuple[float, float, str]]:
     """(start, end, activity) of the coordinator, from its LocomotionState messages."""
-    return plots.activity_intervals(result.run.log.messages("locomotion", of=LocomotionState))
+    return result.series.activity_intervals()
 
 
 def joint_traces(
     result: SimResult, leg: int = 0
 ) -> dict[int, tuple[list[tuple[float, float]], list[tuple[float, float]]]]:
     """For each of :data:`PLOTTED_JOINTS`: (goals, present) as (t, rad) lists; goals are
-    those the leg's own actor sent."""
-    return plots.joint_traces(
-        result.run.log.messages("goals", of=JointGoals),
-        result.run.log.messages("servo-state", of=ServoStates),
-        leg,
-        PLOTTED_JOINTS,
-        source=f"leg-{LEG_NAMES[leg]}",
-    )
+    those the leg's own actor sent. A run keeps leg 0's only
+    (:data:`~whexar.sim.series.TRACED_LEG`)."""
+    return result.series.joint_traces(leg)
 
 
 def leg_currents(result: SimResult) -> tuple[list[float], np.ndarray]:
     """Bus cycle times and, per cycle and leg, Σ |Present Current| of the leg's servos (A)."""
-    return plots.leg_currents(result.run.log.messages("servo-state", of=ServoStates))
+    return result.series.leg_currents()
 
 
 # --------------------------------------------------------------------------- plots
@@ -335,7 +326,9 @@ def plot_cot(found: Sequence[Segment], path: Path) -> Path:
 
 
 FIGURES: Final = {
-    "distance_m": ("distance", "m", "{:.3f}"),
+    "progress_m": ("progress (start to end)", "m", "{:.3f}"),
+    "progress_along_m": ("progress along the course", "m", "{:.3f}"),
+    "distance_m": ("path length (sway included)", "m", "{:.3f}"),
     "mean_speed_mps": ("mean speed while moving", "m/s", "{:.3f}"),
     "energy_j": ("electric energy", "J", "{:.0f}"),
     "cost_of_transport": ("cost of transport", "", "{:.2f}"),
@@ -370,14 +363,15 @@ def summary_markdown(
         "",
         "## Segments",
         "",
-        "| from (s) | to (s) | command | distance (m) | energy (J) | mean power (W) | CoT |",
-        "|---|---|---|---|---|---|---|",
+        "| from (s) | to (s) | command | progress (m) | path (m) | energy (J) "
+        "| mean power (W) | CoT |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for s in found:
         cot = f"{s.cost_of_transport:.2f}" if s.cost_of_transport is not None else "—"
         lines.append(
-            f"| {s.t0:.1f} | {s.t1:.1f} | {s.label} | {s.distance_m:.3f} | {s.energy_j:.0f} "
-            f"| {s.mean_power_w:.1f} | {cot} |"
+            f"| {s.t0:.1f} | {s.t1:.1f} | {s.label} | {s.progress_m:.3f} | {s.distance_m:.3f} "
+            f"| {s.energy_j:.0f} | {s.mean_power_w:.1f} | {cot} |"
         )
     lines += [
         "",

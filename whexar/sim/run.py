@@ -35,7 +35,6 @@ from whexar.actors.messages import (
     AccelImplausible,
     AccelPlausible,
     LocomotionChanged,
-    LocomotionState,
     MotionCommand,
 )
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
@@ -52,6 +51,7 @@ from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sim.faults import SensorFault
 from whexar.sim.model import TIMESTEP_S, load_model
+from whexar.sim.series import NoMessageLog, RunSeries
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.tilt import BoardTilt
 from whexar.sim.world import SimWorld
@@ -105,7 +105,10 @@ def energy_j(samples: Sequence[Sample]) -> float:
 
 
 def travelled(samples: Sequence[Sample]) -> float:
-    """Length (m) of the body centre's path, sampled every :data:`TRAVEL_STEP_S`."""
+    """Length (m) of the body centre's path, sampled every :data:`TRAVEL_STEP_S`.
+
+    A path length, not progress: a robot that treads in place still sways a few cm a
+    second, and that adds up (:func:`progress` is how far it got)."""
     if not samples:
         return 0.0
     points = [samples[0]]
@@ -117,9 +120,32 @@ def travelled(samples: Sequence[Sample]) -> float:
     return sum(math.hypot(b.x - a.x, b.y - a.y) for a, b in itertools.pairwise(points))
 
 
+def progress(samples: Sequence[Sample]) -> float:
+    """Net progress (m): the body centre's horizontal displacement from the first sample to
+    the last, whatever the path between; 0 for no samples."""
+    if not samples:
+        return 0.0
+    a, b = samples[0], samples[-1]
+    return math.hypot(b.x - a.x, b.y - a.y)
+
+
+def progress_along(samples: Sequence[Sample], heading_rad: float) -> float:
+    """Net progress (m) along the direction ``heading_rad`` (yaw, from +x): the horizontal
+    displacement from the first sample to the last projected on it; negative when the body
+    ended behind where it started."""
+    if not samples:
+        return 0.0
+    a, b = samples[0], samples[-1]
+    return (b.x - a.x) * math.cos(heading_rad) + (b.y - a.y) * math.sin(heading_rad)
+
+
 @dataclass
 class SimResult:
-    """What a run did: the samples, every message, the world at the end."""
+    """What a run did: the samples, the compact series of its messages, the world at the end.
+
+    ``run`` is the runtime's result; its message log is empty (reading it raises) unless
+    the run was made with ``simulate(keep_log=True)``: :attr:`series` has what the summary,
+    the report and the campaign metrics read."""
 
     samples: list[Sample]
     run: RunResult
@@ -132,11 +158,21 @@ class SimResult:
     """The MCAP file the run was recorded into, if it was."""
     recorder_stats: RecorderStats | None = None
     """What the recorder did (its costs, what it dropped), if the run was recorded."""
+    series: RunSeries = field(default_factory=RunSeries)
+    """The run's messages as compact series (:mod:`whexar.sim.series`)."""
+    heading_rad: float = 0.0
+    """The course's direction: the body's heading (yaw) at the start, 0 = +x; what
+    ``progress_along_m`` is measured along."""
     _summary: dict[str, Any] | None = field(default=None, init=False, repr=False, compare=False)
 
     def summary(self) -> dict[str, Any]:
         """The figures of ``whexar sim --json`` (worked out once: a campaign's metrics ask
-        for several, and each pass walks the whole message log and hashes the world)."""
+        for several, and each pass walks the run's series and hashes the world).
+
+        ``progress_m`` is the body's net displacement from start to end and
+        ``progress_along_m`` its part along :attr:`heading_rad` (how far it got);
+        ``distance_m`` is the length of its path, sway included (:func:`travelled`), which
+        ``mean_speed_mps`` and ``cost_of_transport`` divide by."""
         if self._summary is None:
             self._summary = self._figures()
         return dict(self._summary)
@@ -145,11 +181,11 @@ class SimResult:
         s = self.samples
         distance = travelled(s)
         energy = energy_j(s)
-        states = self.run.log.messages("locomotion", of=LocomotionState)
+        states = self.series.locomotion
         moving = [x for x in states if x.activity in ("walking", "riding", "hybrid")]
         moving_s = len(moving) * (states[1].t - states[0].t) if len(states) > 1 else 0.0
         margins = [x.margin_m for x in states if x.activity in ("walking", "standing", "hybrid")]
-        changes = self.run.log.events(of=LocomotionChanged)
+        changes = [e for e in self.events if isinstance(e, LocomotionChanged)]
         falls = 0
         fallen = False
         for x in s:
@@ -159,6 +195,8 @@ class SimResult:
             fallen = tilted
         g = 9.81
         return {
+            "progress_m": progress(s),
+            "progress_along_m": progress_along(s, self.heading_rad),
             "distance_m": distance,
             "mean_speed_mps": distance / moving_s if moving_s > 0 else 0.0,
             "energy_j": energy,
@@ -212,6 +250,7 @@ def simulate(
     record_metadata: Mapping[str, str] | None = None,
     live: LiveSink | None = None,
     tilt: BoardTilt | None = None,
+    keep_log: bool = False,
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
@@ -227,6 +266,10 @@ def simulate(
     ``run`` metadata (a scenario's name, the command line). ``live`` (a live view,
     :class:`whexar.record.live.LiveView`) gets everything the recorder writes; with no
     ``record`` it then records to nowhere.
+
+    The result keeps compact series of the messages (:class:`~whexar.sim.series.RunSeries`),
+    so a run's memory does not grow with every message; ``keep_log=True`` keeps every
+    message in ``result.run.log`` too (tests that look at messages).
     """
     cfg = load_config(config) if config else RobotConfig()
     model = load_model(cfg, terrain=terrain, timestep=timestep)
@@ -253,24 +296,9 @@ def simulate(
     )
     name = DEVICE_NAME  # one run per process at a time; the same name keeps logs comparable
     samples: list[Sample] = []
+    series = RunSeries(quiet=Quiet)
 
-    @dataclass
-    class _Seen:
-        entries: int = 0
-        activity: str = ""
-        event: str = ""
-
-    seen = _Seen()
-
-    def sample(log: list[Any]) -> None:
-        # What happened since the last sample: the coordinator's state, the latest event.
-        for entry in log[seen.entries :]:
-            msg = entry.message
-            if isinstance(msg, LocomotionState):
-                seen.activity = f"{msg.activity} {msg.mode}/{msg.gait}"
-            elif isinstance(msg, Event) and not isinstance(msg, Quiet):
-                seen.event = f"{type(msg).__name__} @{msg.t:.1f}s"
-        seen.entries = len(log)
+    def sample() -> None:
         roll, pitch, yaw = quat_rpy(*world.base_quat)
         x, y, z = world.base_position
         s = Sample(
@@ -282,8 +310,8 @@ def simulate(
             pitch,
             yaw,
             world.electric_power(),
-            seen.activity,
-            seen.event,
+            series.latest_activity,
+            series.latest_event,
         )
         samples.append(s)
         if on_sample is not None:
@@ -339,7 +367,7 @@ def simulate(
             while j < len(timeline) and timeline[j][0] <= t + 1e-9:
                 fault(timeline[j][1], ending=timeline[j][2])
                 j += 1
-            sample(h.log.entries)
+            sample()
             if recorder is not None:  # the body's pose, for Foxglove's 3D panel
                 x, y, z = world.base_position
                 qw, qx, qy, qz = world.base_quat
@@ -352,7 +380,7 @@ def simulate(
         record = os.devnull  # the live view is fed by the recorder
     metadata = {"duration_s": repr(float(duration)), **(record_metadata or {})}
     recorder = _recorder(record, cfg, config, graph, metadata, live) if record else None
-    observers = () if recorder is None else (recorder,)
+    observers = (series,) if recorder is None else (series, recorder)
     wall = monotonic()  # the real-time factor's denominator
     with (
         DEVICES.registered(SERVO_CHAIN, name, chain),
@@ -367,10 +395,13 @@ def simulate(
                 feeds=["commands"],
                 observers=observers,
                 link_observer=None if recorder is None else recorder.link_bytes,
+                keep_log=keep_log,
             )
         finally:
             if recorder is not None:
                 recorder.close()
+    if not keep_log:  # reading an empty log would answer wrong, not fail
+        result = dataclasses.replace(result, log=NoMessageLog())
     return SimResult(
         samples=samples,
         run=result,
@@ -378,9 +409,11 @@ def simulate(
         wall_s=monotonic() - wall,
         duration_s=duration,
         mass_kg=cfg.robot.mass_kg,
-        events=result.log.events(),
+        events=series.events,
         recording=None if recorder is None else recorder.path,
         recorder_stats=None if recorder is None else recorder.stats,
+        series=series,
+        heading_rad=yaw0,
     )
 
 
@@ -412,6 +445,8 @@ __all__ = [
     "Sample",
     "SimResult",
     "energy_j",
+    "progress",
+    "progress_along",
     "seated_angles",
     "sim_graph",
     "simulate",

@@ -294,9 +294,11 @@ class Scenario:
         on_sample: Callable[[Sample, SimWorld], None] | None = None,
         record: str | Path | None = None,
         live: LiveSink | None = None,
+        keep_log: bool = False,
     ) -> SimResult:
         """Run it (:func:`whexar.sim.run.simulate`); ``on_sample`` sees every sample,
-        ``record`` is an MCAP file to record the run into, ``live`` a live view."""
+        ``record`` is an MCAP file to record the run into, ``live`` a live view;
+        ``keep_log`` keeps every message in the result's log too."""
         from whexar.sim.run import simulate
 
         return simulate(
@@ -311,6 +313,7 @@ class Scenario:
             record=record,
             live=live,
             tilt=self.spec.tilt.board() if self.spec.tilt is not None else None,
+            keep_log=keep_log,
             record_metadata={
                 "scenario": self.name,
                 "seed": str(self.seed),

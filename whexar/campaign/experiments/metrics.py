@@ -7,7 +7,7 @@ that ``config/campaigns/experiments.toml`` keeps: the total servo current of
 eq. 6.1–6.3 over all 42 servos, the speed up the plane, the cost of transport as
 the thesis computes it (eq. 6.4–6.5), the gait period, the time to cover the 2 m
 track, the direction of travel, the spin rate and the circle's return error. Each
-reads only the run (its samples and its message log), so the campaign's rows stay
+reads only the run (its samples and the series of its messages), so the campaign's rows stay
 deterministic.
 
 *The total current.* The thesis sums each servo's mean |Present Current|
@@ -30,7 +30,6 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
 
-from whexar.actors.messages import LegState
 from whexar.campaign.metrics import G, Value, Window, mean_power, metric, servo_currents
 from whexar.robot import JOINT_NAMES
 from whexar.sim.run import FALLEN_TILT_RAD
@@ -123,13 +122,11 @@ def max_heading_change_deg(result: SimResult, window: Window) -> Value:
 )
 def gait_period_s(result: SimResult, window: Window) -> Value:
     """The mean, over the legs, of the time from one swing's start to the next, s."""
-    starts: dict[int, list[float]] = {}
-    before: dict[int, str] = {}
-    for m in result.run.log.messages(of=LegState):
-        if m.phase == "swing" and before.get(m.leg) != "swing" and window.contains(m.t):
-            starts.setdefault(m.leg, []).append(m.t)
-        before[m.leg] = m.phase
-    periods = [(t[-1] - t[0]) / (len(t) - 1) for t in starts.values() if len(t) > 1]
+    found = result.series.swing_intervals().items()
+    inside = [[t0 for t0, _ in swings if window.contains(t0)] for _, swings in found]
+    # In the order of the legs' first swings, as the messages came: the mean is summed so.
+    starts = sorted((t for t in inside if t), key=lambda t: t[0])
+    periods = [(t[-1] - t[0]) / (len(t) - 1) for t in starts if len(t) > 1]
     return sum(periods) / len(periods) if periods else None
 
 
