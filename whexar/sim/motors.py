@@ -101,19 +101,19 @@ def from_datasheet(sheet: Datasheet, friction_of: MotorModel, source: str) -> Mo
     return replace(friction_of, kt=kt, resistance=kt * v / tau, source=source)
 
 
-# BAM did not identify the MX-28. Its datasheet (ROBOTIS e-manual, MX-28(2.0), and
-# Table 5.1): stall torque 2.5 N·m at 1.4 A and 12 V, so kt = 2.5/1.4 and
-# R = 12 V/1.4 A. Armature and friction are the MX-64's scaled by the stall torque
-# (2.5/6.0): an estimate, not a measurement; it gives a no-load speed of 6.6 rad/s
-# (63 rpm) against the datasheet's 55 rpm.
-MOTORS["MX-28"] = MotorModel(
-    kt=2.5 / 1.4,
-    resistance=12.0 / 1.4,
-    armature=0.011951238325312509 * 2.5 / 6.0,
-    coulomb=0.09038677246291783 * 2.5 / 6.0,
-    viscous=0.011691602145974832 * 2.5 / 6.0,
-    source="MX-28 datasheet (stall 2.5 N·m, 1.4 A at 12 V); armature and friction "
-    "scaled from BAM's MX-64 by stall torque (estimate)",
+# BAM did not identify the MX-28: its line is its datasheet's (stall 2.5 N·m, 55 rpm at
+# 12 V). Armature and friction are the MX-64's scaled by stall torque (2.5/6.0): an
+# estimate, not a measurement.
+MOTORS["MX-28"] = from_datasheet(
+    DATASHEETS["MX-28"],
+    replace(
+        MOTORS["MX-64"],
+        armature=MOTORS["MX-64"].armature * 2.5 / 6.0,
+        coulomb=MOTORS["MX-64"].coulomb * 2.5 / 6.0,
+        viscous=MOTORS["MX-64"].viscous * 2.5 / 6.0,
+    ),
+    "MX-28 datasheet (2.5 N·m stall, 55 rpm at 12 V); armature and friction scaled "
+    "from BAM's MX-64 by stall torque (estimate)",
 )
 
 DATASHEET_MOTORS: Final[dict[str, MotorModel]] = {
