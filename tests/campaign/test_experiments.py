@@ -21,10 +21,12 @@ from whexar.campaign.experiments import (
     made_it,
     spin_rpm,
     steepest,
+    thesis_cost_of_transport,
     time_to_2m_s,
     total_current_a,
     travel_direction_deg,
     uphill_speed_mps,
+    winding_current_a,
     write_report,
 )
 from whexar.sim.run import Sample, SimResult
@@ -175,8 +177,11 @@ def test_failed_runs_are_reported_not_hidden(tmp_path: Path) -> None:
 
 
 def _samples(points: list[tuple[float, float, float, float, float]]) -> list[Sample]:
-    """(t, x, y, z, yaw) → samples, 12 W each."""
-    return [Sample(t, x, y, z, 0.0, 0.0, yaw, 12.0) for t, x, y, z, yaw in points]
+    """(t, x, y, z, yaw) → samples, 12 W each; the supply gives 2 A at 12 V."""
+    return [
+        Sample(t, x, y, z, 0.0, 0.0, yaw, 12.0, supply_a=2.0, supply_v=12.0)
+        for t, x, y, z, yaw in points
+    ]
 
 
 class _FakeResult:
@@ -203,7 +208,10 @@ def test_sample_metrics_on_hand_made_paths() -> None:
     c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
     up = _fake(_samples([(k * 0.5, 0.05 * k * c, 0.0, 0.05 * k * s, 0.0) for k in range(21)]))
     assert uphill_speed_mps(up, Window()) == pytest.approx(0.1)
-    assert total_current_a(up, Window()) == pytest.approx(1.0)
+    assert winding_current_a(up, Window()) == pytest.approx(1.0)
+    assert total_current_a(up, Window()) == pytest.approx(2.0)  # the supply's
+    # eq. 6.4–6.5 on the supply's power: 24 W / (8.8 kg · 9.81 · 0.1 m/s).
+    assert thesis_cost_of_transport(up, Window()) == pytest.approx(24.0 / (8.8 * 9.81 * 0.1))
     assert travel_direction_deg(up, Window()) == pytest.approx(0.0)
     # Sliding back is negative speed.
     down = _fake(_samples([(0.0, 0.0, 0.0, 0.0, 0.0), (2.0, -0.2, 0.0, 0.0, 0.0)]))

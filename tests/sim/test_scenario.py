@@ -230,3 +230,58 @@ def test_overrides_check_their_values() -> None:
     assert s.with_overrides(duration_s=3).duration_s == 3
     with pytest.raises(ValueError, match="seconds"):
         s.with_overrides(duration_s=0)
+
+
+def test_the_supply_and_motors_keys() -> None:
+    from whexar.sim.power import BenchSupply, LiPoBattery
+
+    bench = parse_scenario({"duration_s": 1.0})
+    assert isinstance(bench.spec.supply.build(), BenchSupply)
+    assert bench.spec.supply.build().terminal_volts == 12.0
+    assert bench.spec.motors == "bam"
+    lipo = parse_scenario(
+        {
+            "duration_s": 1.0,
+            "motors": "datasheet",
+            "supply": {"kind": "lipo", "capacity_ah": 2.0, "charge": 0.5},
+        }
+    )
+    pack = lipo.spec.supply.build()
+    assert isinstance(pack, LiPoBattery)
+    assert pack.capacity_ah == 2.0
+    assert pack.state_of_charge == 0.5
+    assert lipo.spec.supply.build() is not pack  # every run starts afresh
+    assert lipo.spec.motors == "datasheet"
+
+
+def test_a_bad_supply_names_the_key_the_value_and_what_is_allowed() -> None:
+    found = _problems(
+        {
+            "duration_s": 1.0,
+            "motors": "strong",
+            "supply": {"kind": "lipo", "charge": 1.5, "volts": 14.0},
+        }
+    )
+    assert "'strong'" in found["motors"]
+    assert "'bam'" in found["motors"]
+    assert "datasheet" in found["motors"]
+    assert "1.5" in found["supply.charge"]
+    assert "1" in found["supply.charge"]
+    found = _problems({"duration_s": 1.0, "supply": {"kind": "mains"}})
+    assert "'mains'" in found["supply.kind"]
+    assert "lipo" in found["supply.kind"]
+    found = _problems({"duration_s": 1.0, "supply": {"capacity_ah": 3.0}})
+    assert 'kind = "lipo"' in found["supply.capacity_ah"]
+    found = _problems({"duration_s": 1.0, "supply": {"kind": "lipo", "volts": 14.0}})
+    assert "14" in found["supply.volts"]
+
+
+def test_a_battery_refuses_a_plan_that_sets_the_servos_voltage() -> None:
+    from whexar.sim.scenario import SCENARIO_DIR
+
+    data = {"duration_s": 1.0, "faults": "../faults/brownout.toml", "supply": {"kind": "lipo"}}
+    with pytest.raises(ConfigError) as info:
+        parse_scenario(data, "test.toml", base=SCENARIO_DIR)
+    (problem,) = info.value.problems
+    assert problem.path == "faults"
+    assert "voltage_sag" in problem.allowed

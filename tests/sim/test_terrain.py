@@ -173,3 +173,12 @@ def test_an_unknown_terrain_name_lists_the_known_ones() -> None:
         terrain_by_name("moon")
     for name in TERRAIN_NAMES:
         assert name in str(info.value)
+
+
+def test_the_tyres_grip_as_the_thesis_implies() -> None:
+    """The thesis's robot stood on its board at 50° (6.8.1): µ ≥ tan 50° = 1.19."""
+    import math
+
+    from whexar.sim.terrain import GROUND_FRICTION
+
+    assert GROUND_FRICTION[0] >= math.tan(math.radians(50.0))

@@ -20,6 +20,7 @@ the same rows, bit for bit, on local processes and on Ray.
 from __future__ import annotations
 
 import importlib
+import itertools
 import math
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -157,13 +158,49 @@ def mean_power(samples: Sequence[Sample]) -> float | None:
     return energy_j(samples) / (samples[-1].t - samples[0].t)
 
 
+def mean_supply(samples: Sequence[Sample]) -> tuple[float, float] | None:
+    """The supply's mean current (A) and mean power (W) over the samples' time span, each
+    sample's current being its mean since the one before; ``None`` for no span."""
+    if len(samples) < 2 or samples[-1].t <= samples[0].t:
+        return None
+    charge = energy = 0.0
+    for a, b in itertools.pairwise(samples):
+        dt = b.t - a.t
+        charge += b.supply_a * dt
+        energy += b.supply_a * 0.5 * (a.supply_v + b.supply_v) * dt
+    span = samples[-1].t - samples[0].t
+    return charge / span, energy / span
+
+
+@metric(
+    "supply_current_a",
+    "A",
+    "mean current drawn from the supply over the window: Σ duty × winding current of the "
+    "servos, their standby currents and the electronics (thesis 6.8, the ACS712 on the "
+    "12 V line)",
+)
+def supply_current_a(result: SimResult, window: Window) -> Value:
+    found = mean_supply(window.samples(result))
+    return None if found is None else found[0]
+
+
+@metric("supply_power_w", "W", "mean power drawn from the supply over the window (eq. 6.5)")
+def supply_power_w(result: SimResult, window: Window) -> Value:
+    found = mean_supply(window.samples(result))
+    return None if found is None else found[1]
+
+
 @metric("displacement_m", "m", "straight-line distance from the window's start to its end")
 def displacement_m(result: SimResult, window: Window) -> Value:
     s = window.samples(result)
     return math.hypot(s[-1].x - s[0].x, s[-1].y - s[0].y) if s else None
 
 
-@metric("mean_power_w", "W", "mean electric power over the window")
+@metric(
+    "mean_power_w",
+    "W",
+    "mean Σ V·|winding current| over the servos in the window (supply_power_w: the supply's)",
+)
 def mean_power_w(result: SimResult, window: Window) -> Value:
     return mean_power(window.samples(result))
 
@@ -173,7 +210,7 @@ def mean_power_w(result: SimResult, window: Window) -> Value:
     "A",
     "total servo current, thesis eq. 6.1–6.3: each servo's mean |Present Current| over the "
     "window, summed over the servos the bus reads (the default read plan reads the coxa, "
-    "femur, tibia and tarsus: 24 servos; total_current_a has all 42)",
+    "femur, tibia and tarsus: 24 servos; winding_current_a has all 42)",
 )
 def mean_current_a(result: SimResult, window: Window) -> Value:
     currents = servo_currents(result, window)
@@ -255,6 +292,7 @@ __all__ = [
     "Window",
     "compute",
     "mean_power",
+    "mean_supply",
     "metric",
     "path_speed",
     "registry",

@@ -15,8 +15,8 @@ Present Current is τ / kt: the motor current.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Final
+from dataclasses import dataclass, replace
+from typing import Final, Literal
 
 from whexar.bus.control_table import TICKS_PER_REV
 
@@ -64,22 +64,78 @@ MOTORS: Final[dict[str, MotorModel]] = {
         viscous=0.03520238029013507,
         source="BAM (ICRA 2025), bam/params/mx106/m1.json",
     ),
-    # BAM did not identify the MX-28. Its datasheet (ROBOTIS e-manual, MX-28(2.0), and
-    # Table 5.1): stall torque 2.5 N·m at 1.4 A and 12 V, so kt = 2.5/1.4 and
-    # R = 12 V/1.4 A. Armature and friction are the MX-64's scaled by the stall torque
-    # (2.5/6.0): an estimate, not a measurement; it gives a no-load speed of 6.6 rad/s
-    # (63 rpm) against the datasheet's 55 rpm.
-    "MX-28": MotorModel(
-        kt=2.5 / 1.4,
-        resistance=12.0 / 1.4,
-        armature=0.011951238325312509 * 2.5 / 6.0,
-        coulomb=0.09038677246291783 * 2.5 / 6.0,
-        viscous=0.011691602145974832 * 2.5 / 6.0,
-        source="MX-28 datasheet (stall 2.5 N·m, 1.4 A at 12 V); armature and friction "
-        "scaled from BAM's MX-64 by stall torque (estimate)",
-    ),
 }
-"""The motor of each servo model the configuration may name."""
+"""The motor of each servo model the configuration may name (:data:`DEFAULT_MOTORS`)."""
+
+
+@dataclass(frozen=True)
+class Datasheet:
+    """A servo model's line at 12 V: stall torque and no-load speed (ROBOTIS e-manual)."""
+
+    stall_torque_nm: float
+    no_load_rpm: float
+    volts: float = 12.0
+
+    @property
+    def no_load_rad_s(self) -> float:
+        return self.no_load_rpm * 2 * math.pi / 60
+
+
+DATASHEETS: Final[dict[str, Datasheet]] = {
+    # ROBOTIS e-manual, MX-28 (2.0), MX-64 (2.0), MX-106 (2.0), "Specifications" (and
+    # Table 5.1 for the stall torques): at 12 V.
+    "MX-28": Datasheet(2.5, 55.0),
+    "MX-64": Datasheet(6.0, 63.0),
+    "MX-106": Datasheet(8.4, 45.0),
+}
+
+
+def from_datasheet(sheet: Datasheet, friction_of: MotorModel, source: str) -> MotorModel:
+    """The motor whose line at the sheet's voltage runs through its stall torque and no-load
+    speed, with the friction and armature of ``friction_of``.
+
+    τ(ω) = kt·V/R − kt²·ω/R − Coulomb: stall τs = kt·V/R, and τ = 0 at
+    ω0 = V·(1 − c/τs)/kt, so kt = V·(1 − c/τs)/ω0 and R = kt·V/τs."""
+    v, tau = sheet.volts, sheet.stall_torque_nm
+    kt = v * (1 - friction_of.coulomb / tau) / sheet.no_load_rad_s
+    return replace(friction_of, kt=kt, resistance=kt * v / tau, source=source)
+
+
+# BAM did not identify the MX-28: its line is its datasheet's (stall 2.5 N·m, 55 rpm at
+# 12 V). Armature and friction are the MX-64's scaled by stall torque (2.5/6.0): an
+# estimate, not a measurement.
+MOTORS["MX-28"] = from_datasheet(
+    DATASHEETS["MX-28"],
+    replace(
+        MOTORS["MX-64"],
+        armature=MOTORS["MX-64"].armature * 2.5 / 6.0,
+        coulomb=MOTORS["MX-64"].coulomb * 2.5 / 6.0,
+        viscous=MOTORS["MX-64"].viscous * 2.5 / 6.0,
+    ),
+    "MX-28 datasheet (2.5 N·m stall, 55 rpm at 12 V); armature and friction scaled "
+    "from BAM's MX-64 by stall torque (estimate)",
+)
+
+DATASHEET_MOTORS: Final[dict[str, MotorModel]] = {
+    name: from_datasheet(
+        DATASHEETS[name],
+        motor,
+        f"{name} datasheet line at 12 V; armature and friction: {motor.source}",
+    )
+    for name, motor in MOTORS.items()
+}
+"""Every motor on its datasheet's line at 12 V, with BAM's friction and armature."""
+
+MotorSource = Literal["bam", "datasheet"]
+"""Which motors a run uses: BAM's identification (the MX-28 from its datasheet), or every
+model on its datasheet's line (docs/sim.md weighs the two)."""
+DEFAULT_MOTORS: Final[MotorSource] = "bam"
+
+
+def motors(source: MotorSource = DEFAULT_MOTORS) -> dict[str, MotorModel]:
+    """The motor of each servo model for ``source``."""
+    return dict(MOTORS if source == "bam" else DATASHEET_MOTORS)
+
 
 MAX_DUTY: Final = 0.9625
 """Largest duty cycle the MX firmware outputs (BAM, bam/dynamixel/actuator.py: measured
@@ -103,10 +159,17 @@ def position_duty_per_rad(p_gain: int) -> float:
 
 
 __all__ = [
+    "DATASHEETS",
+    "DATASHEET_MOTORS",
+    "DEFAULT_MOTORS",
     "KPP_DIVISOR",
     "MAX_DUTY",
     "MOTORS",
     "PWM_LIMIT",
+    "Datasheet",
     "MotorModel",
+    "MotorSource",
+    "from_datasheet",
+    "motors",
     "position_duty_per_rad",
 ]

@@ -51,6 +51,8 @@ from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sim.faults import SensorFault
 from whexar.sim.model import TIMESTEP_S, load_model
+from whexar.sim.motors import DEFAULT_MOTORS, MotorSource
+from whexar.sim.power import Supply
 from whexar.sim.series import NoMessageLog, RunSeries
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.tilt import BoardTilt
@@ -87,6 +89,11 @@ class Sample:
     """What the coordinator does (its latest :class:`LocomotionState`), gait or mode."""
     event: str = ""
     """The latest event of the run, as a short line (empty until there is one)."""
+    supply_a: float = 0.0
+    """The supply's current, A: its mean since the sample before (:mod:`whexar.sim.power`:
+    the servos' bridges, their standby currents and the electronics; thesis Table 6.7)."""
+    supply_v: float = 0.0
+    """The supply's voltage at the servos, V."""
 
     @property
     def tilt(self) -> float:
@@ -208,6 +215,7 @@ class SimResult:
             "wall_seconds": self.wall_s,
             "realtime_factor": self.duration_s / self.wall_s if self.wall_s > 0 else None,
             "state_hash": self.world.state_hash(),
+            **self.world.supply_summary(),
         }
 
 
@@ -251,6 +259,8 @@ def simulate(
     live: LiveSink | None = None,
     tilt: BoardTilt | None = None,
     keep_log: bool = False,
+    supply: Supply | None = None,
+    motor_source: MotorSource = DEFAULT_MOTORS,
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
@@ -259,6 +269,9 @@ def simulate(
     ``start`` is (x, y, yaw) of the body on the ground; ``on_sample`` is called with every
     sample (progress lines, video frames); ``tilt`` raises the board the robot is on
     (:mod:`whexar.sim.tilt`).
+
+    ``supply`` feeds the servos (:mod:`whexar.sim.power`; default: the 12 V bench supply)
+    and ``motor_source`` picks their motors (:func:`whexar.sim.motors.motors`).
 
     ``record`` is an MCAP file to record the run into (:mod:`whexar.record`): every
     message, the bytes of the servo bus and the sensor link, the body's pose on ``/tf``,
@@ -282,7 +295,16 @@ def simulate(
     chip = FakeLsm9ds1()
     i2c = FakeSMBus(cfg.imu.i2c_bus)
     i2c.attach(cfg.imu.address, chip)
-    world = SimWorld(model, chain, cfg=cfg, board=board, imu=chip, tilt=tilt)
+    world = SimWorld(
+        model,
+        chain,
+        cfg=cfg,
+        board=board,
+        imu=chip,
+        supply=supply,
+        motor_source=motor_source,
+        tilt=tilt,
+    )
     x0, y0, yaw0 = start
     seat = cfg.locomotion.sit_height_mm / 1000 + 0.002
     # Seated on the ground where the start is: parallel to a slope, turned by the yaw.
@@ -298,9 +320,21 @@ def simulate(
     samples: list[Sample] = []
     series = RunSeries(quiet=Quiet)
 
+    @dataclass
+    class _Drawn:
+        charge_c: float = 0.0
+        t: float = 0.0
+
+    drawn_so_far = _Drawn()
+
     def sample() -> None:
         roll, pitch, yaw = quat_rpy(*world.base_quat)
         x, y, z = world.base_position
+        # The supply current since the sample before (none before the first: the latest).
+        seen = drawn_so_far
+        drawn, span = world.supply.drawn_c, world.time - seen.t
+        supply_a = (drawn - seen.charge_c) / span if span > 0 else world.supply_a
+        seen.charge_c, seen.t = drawn, world.time
         s = Sample(
             world.time,
             x,
@@ -312,6 +346,8 @@ def simulate(
             world.electric_power(),
             series.latest_activity,
             series.latest_event,
+            supply_a=supply_a,
+            supply_v=world.supply.terminal_volts,
         )
         samples.append(s)
         if on_sample is not None:

@@ -51,6 +51,22 @@ up to ``max_deg`` (:mod:`whexar.sim.tilt`).
 
 *Paths* (``faults``, ``config``) are relative to the scenario file's folder.
 
+*Supply and motors.* ``[supply]`` picks what feeds the servos
+(:mod:`whexar.sim.power`): ``kind = "bench"`` (the default: the experiments'
+12 V bench supply, ``volts`` to change it) or ``kind = "lipo"``, the robot's
+3S Li-Po (5.3.1) with ``capacity_ah`` (6), ``charge`` (the state of charge at
+the start, 0–1) and ``cell_resistance_ohm``. A Li-Po's voltage is the
+world's to set, so a bus fault plan with a ``voltage_sag`` is refused with
+it. ``motors`` is ``"bam"`` (the default) or ``"datasheet"``
+(:func:`whexar.sim.motors.motors`). ::
+
+    motors = "datasheet"
+
+    [supply]
+    kind = "lipo"
+    capacity_ah = 6.0
+    charge = 0.8
+
 *Seed.* The world is deterministic on virtual time; the seed places the
 random features of a table terrain (rocks without a seed of their own). A
 fault plan keeps its own seed. Sensor faults are ``[[sensor_faults]]`` tables
@@ -64,7 +80,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Final
+from typing import TYPE_CHECKING, Annotated, Any, Final, Literal
 
 from pydantic import AfterValidator, Discriminator, Field, Tag, ValidationError
 
@@ -85,6 +101,15 @@ from whexar.runtime.schema import (
 )
 from whexar.sim import terrain as tr
 from whexar.sim.faults import SensorFault
+from whexar.sim.motors import DEFAULT_MOTORS, MotorSource
+from whexar.sim.power import (
+    BENCH_VOLTS,
+    LIPO_CAPACITY_AH,
+    LIPO_CELL_RESISTANCE_OHM,
+    BenchSupply,
+    LiPoBattery,
+    Supply,
+)
 from whexar.sim.tilt import BoardTilt
 
 if TYPE_CHECKING:
@@ -203,6 +228,55 @@ class TiltSpec(Section):
         return BoardTilt(self.start_s, self.rate_deg_s, self.max_deg)
 
 
+_LIPO_KEYS: Final = ("capacity_ah", "charge", "cell_resistance_ohm")
+
+
+class SupplySpec(Section):
+    """What feeds the servos (see the module docstring)."""
+
+    kind: Literal["bench", "lipo"] = "bench"
+    volts: Positive | None = None
+    """bench: its voltage (default 12 V, 5.3.1)."""
+    capacity_ah: Positive | None = None
+    """lipo: its capacity (default 6 Ah, 5.3.1)."""
+    charge: float | None = Field(default=None, ge=0, le=1, allow_inf_nan=False)
+    """lipo: its state of charge at the start, 0–1 (default 1: full)."""
+    cell_resistance_ohm: NonNegative | None = None
+    """lipo: internal resistance per cell (default :data:`LIPO_CELL_RESISTANCE_OHM`)."""
+
+    def problems(self, at: str) -> list[Problem]:
+        found: list[Problem] = []
+        if self.kind == "bench":
+            for key in _LIPO_KEYS:
+                if getattr(self, key) is not None:
+                    found.append(
+                        Problem(f"{at}.{key}", getattr(self, key), 'only with kind = "lipo"')
+                    )
+        elif self.volts is not None:
+            found.append(
+                Problem(
+                    f"{at}.volts",
+                    self.volts,
+                    'only with kind = "bench": a Li-Po\'s voltage follows its charge',
+                )
+            )
+        return found
+
+    def build(self) -> Supply:
+        """A fresh supply for one run."""
+        if self.kind == "bench":
+            return BenchSupply(self.volts if self.volts is not None else BENCH_VOLTS)
+        return LiPoBattery(
+            capacity_ah=self.capacity_ah if self.capacity_ah is not None else LIPO_CAPACITY_AH,
+            initial_charge=self.charge if self.charge is not None else 1.0,
+            cell_resistance_ohm=(
+                self.cell_resistance_ohm
+                if self.cell_resistance_ohm is not None
+                else LIPO_CELL_RESISTANCE_OHM
+            ),
+        )
+
+
 class StartSpec(Section):
     """Where the robot starts, seated: the body centre over the floor and its heading."""
 
@@ -235,9 +309,13 @@ class ScenarioFile(CheckedSection):
     """A robot configuration file, relative to the scenario's folder; absent: the defaults."""
     tilt: TiltSpec | None = None
     """The board raised under the robot, ``[tilt]``; absent: the floor stays as it is."""
+    supply: SupplySpec = SupplySpec()
+    """What feeds the servos: the bench supply (default) or the Li-Po."""
+    motors: MotorSource = DEFAULT_MOTORS
+    """The servos' motors: BAM's identification or their datasheets' lines."""
 
     def problems(self, at: str = "") -> list[Problem]:
-        found: list[Problem] = []
+        found: list[Problem] = self.supply.problems("supply")
         if isinstance(self.terrain, TerrainSpec):
             found.extend(self.terrain.problems("terrain"))
         for k, fault in enumerate(self.sensor_faults):
@@ -318,6 +396,8 @@ class Scenario:
                 "scenario": self.name,
                 "seed": str(self.seed),
             },
+            supply=self.spec.supply.build(),
+            motor_source=self.spec.motors,
         )
 
 
@@ -367,6 +447,15 @@ def parse_scenario(
     problems = spec.problems()
     cfg = _config(spec.config, folder, problems)
     faults = _faults(spec.faults, folder, problems)
+    if faults is not None and spec.supply.kind == "lipo" and _sags(faults):
+        problems.append(
+            Problem(
+                "faults",
+                spec.faults,
+                'a plan without voltage_sag faults with supply.kind = "lipo": the battery '
+                "sets the servos' voltage",
+            )
+        )
     commands = check_commands(spec.commands, cfg or RobotConfig(), problems)
     terrain = _terrain(spec.terrain, spec.seed, problems)
     if terrain is not None:
@@ -426,6 +515,12 @@ def _faults(name: str | None, folder: Path, problems: list[Problem]) -> Path | N
         problems.append(Problem("faults", name, f"a bus fault plan without problems; {found}"))
         return None
     return path
+
+
+def _sags(path: Path) -> bool:
+    from whexar.bus.emulator.faults import load_fault_plan
+
+    return any(f.kind == "voltage_sag" for f in load_fault_plan(path).faults)
 
 
 def _shown_terrain(value: str | TerrainSpec) -> object:
@@ -602,6 +697,7 @@ __all__ = [
     "SCENARIO_DIR",
     "Scenario",
     "ScenarioFile",
+    "SupplySpec",
     "check_commands",
     "describe_command",
     "load_scenario",

@@ -51,14 +51,18 @@ FREE_CONTYPE: Final = 1
 FREE_CONAFFINITY: Final = 3
 """A free block touches static terrain (1 & 2 via the terrain's conaffinity) and the robot."""
 
-GROUND_FRICTION: Final = (0.9, 0.005, 0.0001)
+GROUND_FRICTION: Final = (1.3, 0.005, 0.0001)
 """Sliding, torsional and rolling friction of the ground.
 
-Rubber on concrete: µs 1.0, µk 0.8 (Serway and Beichner, *Physics for Scientists and
-Engineers*, 5th ed., Table 5.2); Engineering ToolBox gives 0.6–0.85 kinetic on dry
-concrete. MuJoCo has one coefficient for sticking and sliding; 0.9 lies between. The
-wheels carry the same value with a higher priority (:mod:`whexar.sim.model`), so a
-wheel's contact uses the rubber's numbers whatever it touches. The torsional and
+The thesis's robot stood on its board tilted to 50° (6.8.1, Table 6.6), so its soft
+rubber tyres (5.2, Fig. 5.2) held there: µ ≥ tan 50° = 1.19. Handbook values for rubber
+are lower (on concrete µs 1.0, µk 0.8: Serway and Beichner, *Physics for Scientists and
+Engineers*, 5th ed., Table 5.2) and none was found for soft tyres on plywood: the
+thesis's own result is the measurement. MuJoCo has one coefficient for sticking and
+sliding; 1.3 (holding to 52°) leaves a margin over 1.19 for a contact that is not a
+static one. The wheels carry the same value with a higher priority
+(:mod:`whexar.sim.model`), so a wheel's contact uses the rubber's numbers whatever it
+touches. The torsional and
 rolling terms only act on contacts with ``condim`` 4 or 6.
 """
 BLOCK_FRICTION: Final = (0.6, 0.005, 0.0001)

@@ -32,6 +32,13 @@ motor make of its control table (:mod:`whexar.sim.motors`):
 Present Position and Velocity are the joint's; Present Current is τ / kt (the
 MX-28 reports Present Load, the same as a fraction of its stall current).
 
+*Supply* (:mod:`whexar.sim.power`). Each step the world adds up what the
+servos' bridges draw from the 12 V line, Σ duty × winding current; with the
+standby currents and the electronics that is the supply current the thesis
+measured (Table 6.7). A bench supply holds its voltage; a battery's sags, and
+the servos' voltage (their torque, Present Input Voltage, Input Voltage
+Error) follows it after every transaction.
+
 *Sensors*, refreshed as the world advances (every :data:`SENSE_PERIOD_S`):
 the force sensor under each leg reads the wheel's contact force through an
 FSR divider (:func:`fsr_counts`); the IR rangefinders cast rays
@@ -66,7 +73,16 @@ from whexar.sensors.board_emulator import (
 )
 from whexar.sensors.frame import ACC_KEYS, FSR_KEYS, IR_KEYS
 from whexar.sensors.imu_emulator import FakeLsm9ds1
-from whexar.sim.motors import MAX_DUTY, MOTORS, PWM_LIMIT, TICKS_PER_RAD, position_duty_per_rad
+from whexar.sim.motors import (
+    DEFAULT_MOTORS,
+    MAX_DUTY,
+    PWM_LIMIT,
+    TICKS_PER_RAD,
+    MotorSource,
+    motors,
+    position_duty_per_rad,
+)
+from whexar.sim.power import BenchSupply, Supply, supply_amps
 from whexar.sim.tilt import BoardTilt
 
 _GAINS_SPAN: Final = slice(76, 86)
@@ -160,8 +176,19 @@ class SimWorld:
         board: SensorBoardEmulator | None = None,
         imu: FakeLsm9ds1 | None = None,
         tilt: BoardTilt | None = None,
+        supply: Supply | None = None,
+        motor_source: MotorSource = DEFAULT_MOTORS,
     ) -> None:
         self.cfg = cfg or RobotConfig()
+        self.supply: Supply = supply or BenchSupply(self.cfg.robot.supply_voltage_v)
+        """What feeds the servos' line (:mod:`whexar.sim.power`)."""
+        self.supply_a = 0.0
+        """The line's mean current over the last transaction's steps, A."""
+        self._bridge_c = 0.0
+        """Charge the bridges drew over the steps of one :meth:`advance_to`, C."""
+        self._bridge_a = 0.0
+        """Σ duty × winding current of the last step, A."""
+        table = motors(motor_source)
         self.model = model
         self.tilt = tilt
         """The board's tilt (:mod:`whexar.sim.tilt`): gravity turns with it."""
@@ -187,7 +214,7 @@ class SimWorld:
                 aid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
                 servo = chain.servos[sid]
                 model_name = servo.model.name
-                motor = MOTORS[model_name]
+                motor = table[model_name]
                 joint = _Joint(
                     leg,
                     j,
@@ -283,6 +310,7 @@ class SimWorld:
             board.script = self._board_inputs
         mujoco.mj_forward(model, self.data)
         self._sync_servos()
+        self._feed_servos()
 
     # ----------------------------------------------------------------- state
 
@@ -341,11 +369,15 @@ class SimWorld:
             m.opt.gravity[:] = self.tilt.gravity(self.time, self._g)
         qadr, dadr, act = self._qadr, self._dadr, self._act
         start, w0 = self.time, d.qvel[dadr].copy()  # a view when dadr is a slice
+        bridge_c = 0.0
         while self.time + h <= t + 1e-12:
             d.ctrl[act] = self._control(d.qpos[qadr], d.qvel[dadr])
+            # The bridges' net draw of this step; a net surplus is lost (power module).
+            bridge_c += max(0.0, self._bridge_a) * h
             mujoco.mj_step(m, d)
             self.steps += 1
             self.time = self.steps * h
+        self._draw(bridge_c, self.time - start)
         w1 = d.qvel[dadr]
         self._amps = (self._torque / self._kt / self._load_scale).tolist()
         # The mean acceleration since the last transaction: what the servo's Moving and
@@ -455,7 +487,29 @@ class SimWorld:
         # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft; torque off: coasting.
         tau: np.ndarray = (duty * self._drive_gain - self._emf_gain * w) * self._on_f
         self._torque = tau
+        # What the bridges take from the line: duty × winding current (0 with torque off).
+        self._bridge_a = float(np.dot(duty, tau / self._kt))
         return tau
+
+    def _draw(self, bridge_c: float, elapsed: float) -> None:
+        """Take the line's current over ``elapsed`` s from the supply; feed its voltage on."""
+        if elapsed <= 0.0:
+            return
+        supply = self.supply
+        self.supply_a = supply_amps(
+            bridge_c / elapsed, len(self.chain.servos), supply.terminal_volts
+        )
+        supply.draw(self.supply_a, elapsed)
+        self._feed_servos()
+
+    def _feed_servos(self) -> None:
+        """Every servo on the line sees the battery's voltage (a bench supply's is left
+        alone: the servos start at 12 V, and a voltage-sag fault sets its own)."""
+        if isinstance(self.supply, BenchSupply):
+            return
+        volts = self.supply.terminal_volts
+        for servo in self.chain.servos.values():
+            servo.input_voltage_v = volts
 
     def _current(self, servo: ServoView, t: float) -> float:
         """Present Current (A), or for the MX-28 its Present Load as a fraction of stall."""
@@ -537,8 +591,25 @@ class SimWorld:
         return w, x, y, z
 
     def electric_power(self) -> float:
-        """Σ V·I over the servos, W: what the supply gives the motors now."""
+        """Σ V·|I| over the servos, W, I the winding current: the motors' power were each
+        at full duty (the supply's is :attr:`supply_a` × the line's voltage)."""
         return float(np.sum(np.abs(self._torque / self._kt) * self._volts))
+
+    def winding_current(self) -> float:
+        """Σ |τ/kt| over the servos now, A: the winding currents Present Current reports."""
+        return float(np.sum(np.abs(self._torque / self._kt)))
+
+    def supply_summary(self) -> dict[str, float | None]:
+        """The supply over the run: charge and energy drawn, its state of charge."""
+        supply = self.supply
+        soc = supply.state_of_charge
+        empty = getattr(supply, "empty_at_s", None)
+        return {
+            "supply_charge_ah": supply.drawn_c / 3600.0,
+            "supply_energy_j": supply.energy_j,
+            "battery_state_of_charge": soc,
+            "battery_empty_at_s": empty,
+        }
 
     def state_hash(self) -> str:
         """A hash of the world's full state: equal runs give equal hashes, bit for bit."""

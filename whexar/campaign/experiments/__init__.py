@@ -49,6 +49,7 @@ from whexar.campaign.experiments.metrics import (
     total_current_a,
     travel_direction_deg,
     uphill_speed_mps,
+    winding_current_a,
 )
 from whexar.campaign.experiments.reference import (
     REFERENCE_PATH,
@@ -90,5 +91,6 @@ __all__ = [
     "total_current_a",
     "travel_direction_deg",
     "uphill_speed_mps",
+    "winding_current_a",
     "write_report",
 ]

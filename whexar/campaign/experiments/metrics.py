@@ -10,14 +10,15 @@ track, the direction of travel, the spin rate and the circle's return error. Eac
 reads only the run (its samples and the series of its messages), so the campaign's rows stay
 deterministic.
 
-*The total current.* The thesis sums each servo's mean |Present Current|
-(eq. 6.1) over the servos of a leg (eq. 6.2) and over the legs (eq. 6.3).
-The simulation's default read plan reads the current of only 24 servos
-(coxa, femur, tibia, tarsus): the generic ``mean_current_a`` sums those. The
-world knows every motor's current (its Present Current is τ/kₜ, the same
-number): the sampled electric power Σ V·|I| over the supply voltage is that
-sum over all 42 servos, so :func:`total_current_a` is the one compared with
-the thesis.
+*The total current.* Table 6.7's current, and the I of the cost of
+transport (eq. 6.5: "the current drawn from the power supply"), is the
+supply's: an ACS712 on the 12 V line (6.8). :func:`total_current_a` is that:
+the world's supply current (:mod:`whexar.sim.power`: Σ duty × winding current
+of the bridges, the servos' standby currents, the electronics). The winding
+currents the servos report as Present Current (eq. 6.1–6.3, Fig. 6.8) keep
+their own names: the generic ``mean_current_a`` sums those the default read
+plan reads (coxa, femur, tibia, tarsus: 24 servos), :func:`winding_current_a`
+all 42 (the sampled Σ V·|I| over the supply voltage).
 
 The constants below define what a metric measures (a change changes the rows,
 and so every run's key); the thesis's figures they are set beside are data
@@ -30,7 +31,15 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
 
-from whexar.campaign.metrics import G, Value, Window, mean_power, metric, servo_currents
+from whexar.campaign.metrics import (
+    G,
+    Value,
+    Window,
+    mean_power,
+    mean_supply,
+    metric,
+    servo_currents,
+)
 from whexar.robot import JOINT_NAMES
 from whexar.sim.run import FALLEN_TILT_RAD
 
@@ -54,11 +63,23 @@ def _supply_voltage(result: SimResult) -> float:
 @metric(
     "total_current_a",
     "A",
-    "total servo current, thesis eq. 6.1–6.3, over all 42 servos: the motors' mean Σ|I| "
-    "(electric power Σ V·|I| over the supply voltage)",
+    "the robot's current as Table 6.7 measured it: the supply's mean current (the servos' "
+    "bridges, duty × winding current, their standby currents and the electronics)",
 )
 def total_current_a(result: SimResult, window: Window) -> Value:
-    """Σ over every servo of its mean |current| in the window (eq. 6.1–6.3), A."""
+    """The mean current drawn from the supply in the window (6.8, eq. 6.5), A."""
+    found = mean_supply(window.samples(result))
+    return None if found is None else found[0]
+
+
+@metric(
+    "winding_current_a",
+    "A",
+    "total servo winding current, thesis eq. 6.1–6.3, over all 42 servos: the motors' mean "
+    "Σ|I| as Present Current reports it (electric power Σ V·|I| over the supply voltage)",
+)
+def winding_current_a(result: SimResult, window: Window) -> Value:
+    """Σ over every servo of its mean |winding current| in the window (eq. 6.1–6.3), A."""
     power = mean_power(window.samples(result))
     return None if power is None else power / _supply_voltage(result)
 
@@ -94,18 +115,24 @@ def uphill_speed_mps(result: SimResult, window: Window) -> Value:
     return _along_plane(s[0], s[-1]) / (s[-1].t - s[0].t)
 
 
+def cost_of_transport(power_w: float, mass_kg: float, speed_mps: float) -> float:
+    """e = P / (m·g·v) (eq. 6.4), P = U·I (eq. 6.5)."""
+    return power_w / (mass_kg * G * speed_mps)
+
+
 @metric(
     "thesis_cost_of_transport",
     "",
-    "cost of transport as in thesis eq. 6.4–6.5: U·I / (m g v), I the total servo current, "
-    "v the speed up the plane; none below 0.01 m/s",
+    "cost of transport as in thesis eq. 6.4–6.5: U·I / (m g v), U·I the supply's mean "
+    "power (I the supply current, as total_current_a), v the speed up the plane; none "
+    "below 0.01 m/s",
 )
 def thesis_cost_of_transport(result: SimResult, window: Window) -> Value:
     """e = U·I / (m·g·v) (eq. 6.4, P = U·I eq. 6.5), as Table 6.7 computes it."""
-    current, speed = total_current_a(result, window), uphill_speed_mps(result, window)
-    if not isinstance(current, float) or not isinstance(speed, float) or speed < 0.01:
+    found, speed = mean_supply(window.samples(result)), uphill_speed_mps(result, window)
+    if found is None or not isinstance(speed, float) or speed < 0.01:
         return None
-    return _supply_voltage(result) * current / (result.mass_kg * G * speed)
+    return cost_of_transport(found[1], result.mass_kg, speed)
 
 
 @metric("max_heading_change_deg", "°", "largest |yaw − yaw at the window's start| in the window")
@@ -330,6 +357,7 @@ __all__ = [
     "PER_JOINT",
     "TRACK_M",
     "circle_return_m",
+    "cost_of_transport",
     "fell_at_s",
     "fell_while",
     "gait_period_s",
@@ -342,4 +370,5 @@ __all__ = [
     "total_current_a",
     "travel_direction_deg",
     "uphill_speed_mps",
+    "winding_current_a",
 ]
