@@ -40,3 +40,18 @@ def test_without_the_trochanter_the_rear_legs_carry_most(tmp_path: Path) -> None
     config.write_text("[locomotion]\ntrochanter_follows_pitch = false\n")
     front, _, rear = _pair_loads(str(config))
     assert rear > 3 * front
+
+
+def test_standing_settles_below_the_current_of_walking() -> None:
+    # Position-held legs used to push each other through the ground: standing drew more
+    # than walking (the slopes note: 11 A). The settling stance relaxes what they exchange.
+    from whexar.testing.walk import command
+
+    def mean_supply(result_samples: list[Sample], t0: float, t1: float) -> float:
+        window = [s.supply_a for s in result_samples if t0 <= s.t <= t1]
+        return sum(window) / len(window)
+
+    stand = simulate(duration=8.0)
+    walk = simulate(commands=[(3.0, command(gait="tripod", vx_m_s=0.12))], duration=12.0)
+    standing, walking = mean_supply(stand.samples, 5.0, 8.0), mean_supply(walk.samples, 6.0, 12.0)
+    assert standing < walking, (standing, walking)

@@ -212,6 +212,12 @@ class LocomotionSpec(Section):
     """The trochanters follow the pitch up to this. The joint turns a full circle (it flips
     the legs, 6.8.1); the IK of eq. 4.18 needs the angle strictly inside ±90°, and beyond
     60° the arc lifts the feet by more than half their depth."""
+    settle_s: NonNegative = 0.5
+    """Standing, the feet's goals follow where the feet are, with this time constant, so
+    the legs stop pushing each other through the ground (:mod:`whexar.actors.locomotion.
+    settle`); 0: the goals hold."""
+    settle_max_mm: Positive = 40.0
+    """… never further than this from the stance's neutral point."""
     tilt_filter_s: Positive = 1.0
     """Time constant of the low-pass on the measured pitch the trochanters follow: a slope
     is steady, the accelerations of walking are not."""

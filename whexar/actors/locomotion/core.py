@@ -90,6 +90,9 @@ class PlannerCore:
         self.feet: list[Vec3 | None] = [None] * N_LEGS
         self.measured_feet: list[Vec3 | None] = [None] * N_LEGS
         """Where each leg's foot is: its present angles' forward kinematics (:meth:`contacts`)."""
+        self.measured_raw: list[Vec3 | None] = [None] * N_LEGS
+        """The same, off the grid (the settling stance's errors are millimetres)."""
+        self.settle_t = -math.inf
         self.wheel_measured: list[float | None] = [None] * N_LEGS
         self.direction_measured: list[float | None] = [None] * N_LEGS
         self.coxa_measured: list[float | None] = [None] * N_LEGS
@@ -173,6 +176,15 @@ class PlannerCore:
         sign = -1.0 if self.upside_down else 1.0
         return [(float(f[0]), sign * float(f[1]), -h) for f in feet]
 
+    def placed(self, leg: int, foot: Vec3) -> Vec3:
+        """Where ``leg`` puts a foot planned at ``foot``: the trochanter carries it on its
+        arc (:func:`trochanter_arc`; upright frame, the body pose left out)."""
+        theta = self.trochanter_rad
+        if theta == 0.0 or self.upside_down:
+            return foot
+        frame = self.frames[leg]
+        return frame.from_leg(trochanter_arc(frame.to_leg(foot), theta))
+
     def margin(self, down: list[int]) -> float:
         """The static stability margin of the feet of legs ``down`` (3.2.2); a leg never
         placed counts at its neutral point.
@@ -182,14 +194,10 @@ class PlannerCore:
         onto their plane (:func:`gravity_cog`): on a slope the point the supports must
         enclose lies downhill of the one straight below the body."""
         feet, neutral = self.feet, self.neutral_points
-        theta = self.trochanter_rad
         points: list[tuple[float, float]] = []
         ground = 0.0
-        frames = self.frames
         for i in down:
-            x, y, z = feet[i] or neutral[i]
-            if theta != 0.0 and not self.upside_down:
-                x, y, z = frames[i].from_leg(trochanter_arc(frames[i].to_leg((x, y, z)), theta))
+            x, y, z = self.placed(i, feet[i] or neutral[i])
             points.append((x, y))
             ground += z
         pose = self.pose_now

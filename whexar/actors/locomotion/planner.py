@@ -40,6 +40,7 @@ from whexar.actors.locomotion.activity import QUIET, STEADY, Activity
 from whexar.actors.locomotion.core import SETTLE_S, STILL, Script
 from whexar.actors.locomotion.engines import Engines, ramp
 from whexar.actors.locomotion.intent import refused, take_command
+from whexar.actors.locomotion.settle import SETTLE_PERIOD_S, settled
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,
@@ -133,6 +134,8 @@ class LocomotionPlanner(Engines):
                 self.set_activity(Activity.HYBRID if hybrid else Activity.WALKING)
             elif self.activity in (Activity.WALKING, Activity.HYBRID):
                 self.set_activity(Activity.STANDING)
+            if self.activity == Activity.STANDING:
+                self._settle()
         self._publish()
         return out
 
@@ -191,6 +194,7 @@ class LocomotionPlanner(Engines):
         for s in legs:
             self.feet[s.leg] = s.foot
             m = s.measured_foot
+            self.measured_raw[s.leg] = m
             if m is not None:  # on a grid: a command changes when a wheel moved, not with noise
                 g = CONTACT_GRID_M
                 self.measured_feet[s.leg] = (
@@ -268,6 +272,28 @@ class LocomotionPlanner(Engines):
                 for leg, target, height in self.pending_moves:
                     self.send_step(leg, "move", self.pending_duration, target, height)
                 self.pending_moves = []
+
+    def _settle(self) -> None:
+        """Standing: the feet's goals follow where the feet are (:mod:`.settle`)."""
+        tau = self.loco.settle_s
+        t = self.t
+        if tau <= 0.0 or t - self.settle_t < SETTLE_PERIOD_S - 1e-9:
+            return
+        if any(t < until for until in self.swing_until) or any(self.leg_twist):
+            return
+        self.settle_t = t
+        feet = self.feet
+        placed = [None if f is None else self.placed(i, f) for i, f in enumerate(feet)]
+        moves = settled(
+            feet,
+            placed,
+            self.measured_raw,
+            self.neutral_points,
+            fraction=1.0 - math.exp(-SETTLE_PERIOD_S / tau),
+            limit_m=self.loco.settle_max_mm / 1000,
+        )
+        for leg, target in moves.items():
+            self.send_step(leg, "move", SETTLE_PERIOD_S, target)
 
     # ----------------------------------------------------------------- saying it
 
