@@ -108,6 +108,9 @@ def test_steepest_slope_is_the_last_of_an_unbroken_run_of_successes() -> None:
     assert held(_row("stance-1", _standing(0.0, fell=True))) is False
 
 
+BOARD = {"start_s": 7.0, "rate_deg_s": 1.5, "max_deg": 55.0}
+
+
 def test_figures_come_from_the_rows_with_thesis_values_beside() -> None:
     rows = [
         _row(
@@ -129,6 +132,12 @@ def test_figures_come_from_the_rows_with_thesis_values_beside() -> None:
         _row("straight", {"time_to_2m_s": 11.0, "top_speed_mps": 0.18}),
         _row("stance-1", _standing(0.0) | {"total_current_a": 10.0}, slope=32, trochanter=False),
         _row("stance-3", _standing(0.0) | {"total_current_a": 7.0}, slope=32, trochanter=True),
+        # The tilting board: one run without the trochanter, three seeds with it.
+        _row("tilt-walk", {"tilt_limit_deg": 21.5}, trochanter=False, tilt=BOARD),
+        *(
+            _row("tilt-walk", {"tilt_limit_deg": v}, trochanter=True, tilt=BOARD)
+            for v in (30.0, 34.0, 33.0)
+        ),
     ]
     found = figures(rows)
     by = _by_name(found)
@@ -149,7 +158,10 @@ def test_figures_come_from_the_rows_with_thesis_values_beside() -> None:
     assert by["Table 6.6 stance No. 2 on 14°: total current"].sim is None  # no run here
     # A row missing from the campaign or failed is no value, never a made-up one.
     assert by["Table 6.7 tripod 32°, with trochanter: speed"].sim is None
-    assert by["steepest slope walked, without trochanter"].sim == 0.0
+    assert by["steepest slope walked, without trochanter"].sim == 21.5
+    walked = by["steepest slope walked, with trochanter"]
+    assert (walked.sim, walked.note) == (33.0, "Median of 3 runs: 30–34°.")
+    assert by["steepest slope ridden, with trochanter"].sim is None  # no tilting-board run
     # JSON: exactly the four keys, and every value serialisable.
     doc = json.loads(json.dumps({"experiments": [f.to_json() for f in found]}))
     assert all(set(f) == {"name", "unit", "thesis", "sim"} for f in doc["experiments"])

@@ -27,6 +27,7 @@ slope with every tested slope up to it made.
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final, TypeAlias
@@ -361,20 +362,46 @@ def _table_6_6(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
     return out
 
 
+def tilted(rows: Iterable[Row], label: str, trochanter: bool) -> list[float] | None:
+    """The board angles (°) where the tilting-board runs of ``label`` (runs with a ``tilt``)
+    failed (``tilt_limit_deg``), one per run that has one; ``None`` when ``label`` names no
+    such runs."""
+    board = [
+        r
+        for r in rows
+        if r.label == label and trochanter_of(r) == trochanter and "tilt" in r.variation
+    ]
+    if not board:
+        return None
+    found = (number(r, "tilt_limit_deg") for r in board)  # a failed run has none
+    return [v for v in found if v is not None]
+
+
 def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
-    """6.7.6, 6.8.1: the steepest slopes, from the sweep."""
+    """6.7.6, 6.8.1: the steepest slopes, from the tilting board (or a sweep)."""
     spec, out = ref.steepest, []
     tolerance = ref.tolerance if spec.tolerance is None else spec.tolerance
     for s in spec.slopes:
-        tested = sorted(
-            {slope_of(r) for r in rows if r.label == s.label and trochanter_of(r) == s.trochanter}
-        )
-        found = steepest(rows, s.label, s.trochanter, ref.rules)
+        board = tilted(rows, s.label, s.trochanter)
         note = ""
-        if tested and found == tested[-1]:
-            note = f"Every slope tested passed: the limit lies above {tested[-1]:g}°."
-        elif found is None and tested:
-            note = f"The lowest slope tested ({tested[0]:g}°) already failed."
+        found: float | None
+        if board is not None:
+            found = statistics.median(board) if board else None
+            if len(board) > 1:
+                note = f"Median of {len(board)} runs: {min(board):.3g}–{max(board):.3g}°."
+        else:
+            tested = sorted(
+                {
+                    slope_of(r)
+                    for r in rows
+                    if r.label == s.label and trochanter_of(r) == s.trochanter
+                }
+            )
+            found = steepest(rows, s.label, s.trochanter, ref.rules)
+            if tested and found == tested[-1]:
+                note = f"Every slope tested passed: the limit lies above {tested[-1]:g}°."
+            elif found is None and tested:
+                note = f"The lowest slope tested ({tested[0]:g}°) already failed."
         with_ = "with" if s.trochanter else "without"
         out.append(
             _figure(
@@ -417,5 +444,6 @@ __all__ = [
     "number",
     "slope_of",
     "steepest",
+    "tilted",
     "trochanter_of",
 ]

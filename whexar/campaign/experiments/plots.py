@@ -21,6 +21,7 @@ from whexar.campaign.experiments.figures import (
     made_it,
     number,
     slope_of,
+    tilted,
     trochanter_of,
 )
 from whexar.campaign.experiments.metrics import PER_JOINT
@@ -121,27 +122,40 @@ MODES: Final = ("walk", "ride", "stand")
 """The order of the sweep's lines, each without then with the trochanter."""
 
 
+SWEEPS: Final = {
+    "walk": ("tripod", "tripod"),
+    "ride": ("wheels", "wheels"),
+    "stand": ("stance-1", "stance-3"),
+}
+"""The fixed-slope runs of each mode, (without, with) the trochanter."""
+
+
 def plot_sweep(rows: Sequence[Row], ref: Reference, path: Path) -> Path:
-    """6.7.6: the outcome of every run of the slope sweep, the thesis's steepest marked."""
+    """6.7.6: the outcome of every fixed-slope run, where the tilting board failed, and the
+    thesis's steepest."""
     fig, ax = new_figure(9.0, 4.0)
     lines = sorted(ref.steepest.slopes, key=lambda s: (MODES.index(s.mode), s.trochanter))
     for k, line in enumerate(lines):
-        judge = judge_of(line.label)
+        label = SWEEPS[line.mode][int(line.trochanter)]
+        judge = judge_of(label)
         for r in rows:
-            if r.label != line.label or trochanter_of(r) != line.trochanter:
+            if r.label != label or trochanter_of(r) != line.trochanter or "tilt" in r.variation:
                 continue
             ok = judge(r, ref.rules)
             color = "tab:green" if ok else "tab:red" if ok is False else "tab:gray"
             ax.plot(slope_of(r), k, "s", color=color, markersize=11)
+        for angle in tilted(rows, line.label, line.trochanter) or ():
+            ax.plot(angle, k, "D", color="tab:blue", markersize=7)
         ax.plot(line.thesis_deg, k, "k|", markersize=22, markeredgewidth=2)
     ax.set_yticks(range(len(lines)))
     ax.set_yticklabels([f"{s.mode} {'w' if s.trochanter else 'w/o'} trochanter" for s in lines])
     ax.set_xlabel("slope (°)")
     ax.plot([], [], "s", color="tab:green", label="made it / held")
     ax.plot([], [], "s", color="tab:red", label="failed")
+    ax.plot([], [], "D", color="tab:blue", label="tilting board: failed here")
     ax.plot([], [], "k|", markersize=12, label="thesis's steepest")
     ax.legend(fontsize=7, loc="lower left")
-    ax.set_title("Slope sweep (6.7.6): the outcome of every run")
+    ax.set_title("Slopes (6.7.6): fixed slopes, and the board raised under the robot")
     ax.grid(True, axis="x", alpha=0.3)
     return save_figure(fig, path)
 

@@ -233,7 +233,8 @@ class SteepestSlope(Section):
     mode: Literal["walk", "ride", "stand"]
     trochanter: Flag
     label: Label
-    """The campaign's runs of the sweep for it."""
+    """The campaign's runs for it: a tilting board's (their ``tilt_limit_deg``, the board's
+    angle where the run failed, as the thesis found it), or a sweep of fixed slopes."""
     thesis_deg: ThesisNumber
 
 
