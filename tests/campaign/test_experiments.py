@@ -274,16 +274,21 @@ def test_gait_period_from_the_legs_swings() -> None:
 
 @pytest.mark.slow
 def test_total_current_on_a_short_real_run() -> None:
-    """3 s of simulated time, standing up: the total current (all 42 servos, from the
-    motors) is at least what the bus reads of the 24 it reports (the generic metric)."""
-    from whexar.campaign.metrics import mean_current_a
+    """3 s of simulated time, standing up: the winding current of all 42 servos (from the
+    motors) is at least what the bus reads of the 24 it reports (the generic metric), and
+    the supply's (Table 6.7's total) carries the 42 servos' standby current besides."""
+    from whexar.campaign.metrics import mean_current_a, registry
+    from whexar.sim.power import STANDBY_A
 
     result = parse_scenario({"duration_s": 3.0, "terrain": "flat"}).run()
     window = Window(2.5, 3.0)
+    winding = registry()["winding_current_a"].fn(result, window)
     total, read = total_current_a(result, window), mean_current_a(result, window)
     assert isinstance(total, float)
     assert isinstance(read, float)
-    assert 0.5 < read <= total * 1.05
+    assert isinstance(winding, float)
+    assert 0.5 < read <= winding * 1.05
+    assert total > 42 * STANDBY_A
     assert uphill_speed_mps(result, window) == pytest.approx(0.0, abs=0.01)
 
 

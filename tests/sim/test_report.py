@@ -56,7 +56,8 @@ def test_the_report_folder_has_every_plot_and_both_tables(
     assert set(walked.summary()) <= set(doc)
     assert [s["label"] for s in doc["segments"]] == ["start", "vx 0.1"]
     md = (tmp_path / "report" / "summary.md").read_text(encoding="utf-8")
-    assert "| distance |" in md
+    assert "| path length (sway included) |" in md
+    assert "| progress (start to end) |" in md
     assert "| vx 0.1 |" in md.replace("| 3.0 |", "")
 
 

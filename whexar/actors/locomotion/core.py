@@ -104,7 +104,7 @@ class PlannerCore:
         self.ground_tilt = (0.0, 0.0)
         """(roll, pitch) of the ground under the feet as gravity sees it (rad)."""
         self.frames = [LegFrame(self.geometry, i) for i in range(N_LEGS)]
-        """The legs' frames on the feet, without the body pose: where the arcs are drawn."""
+        """The legs' frames under the body pose: where the arcs are drawn."""
         self.pending_moves: list[tuple[int, Vec3, float]] = []
         self.pending_duration = 0.0
         self._workspace: dict[tuple[str, bool], float] = {}
@@ -177,12 +177,15 @@ class PlannerCore:
         return [(float(f[0]), sign * float(f[1]), -h) for f in feet]
 
     def placed(self, leg: int, foot: Vec3) -> Vec3:
-        """Where ``leg`` puts a foot planned at ``foot``: the trochanter carries it on its
-        arc (:func:`trochanter_arc`; upright frame, the body pose left out)."""
+        """Where ``leg`` puts a foot planned at ``foot`` (upright frame): the trochanter
+        carries it on its arc (:func:`trochanter_arc`) in the leg's frame under the body
+        pose, as the leg does."""
         theta = self.trochanter_rad
         if theta == 0.0 or self.upside_down:
             return foot
         frame = self.frames[leg]
+        if frame.pose != self.pose_now:
+            frame.set_pose(tuple(self.pose_now))
         return frame.from_leg(trochanter_arc(frame.to_leg(foot), theta))
 
     def margin(self, down: list[int]) -> float:
