@@ -44,7 +44,7 @@ def test_text_summary_names_the_figures_and_the_recording(
     assert main(["sim", "--scenario", "slope", "--duration", "1", "--seed", "3"]) == 0
     out, err = capsys.readouterr()
     assert out.startswith("whexar sim: slope")
-    for label in ("distance", "cost of transport", "falls", "real-time factor", "state hash"):
+    for label in ("progress", "path length", "cost of transport", "falls", "state hash"):
         assert label in out
     (recording,) = (tmp_path / "recordings").glob("slope-*.mcap")
     assert f"recording: {recording.relative_to(tmp_path)}" in err
