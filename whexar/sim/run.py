@@ -52,6 +52,8 @@ from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sim.faults import SensorFault
 from whexar.sim.model import TIMESTEP_S, load_model
+from whexar.sim.spread import Spread
+from whexar.sim.spread import apply as apply_spread
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.world import SimWorld
 
@@ -210,6 +212,7 @@ def simulate(
     record: str | Path | None = None,
     record_metadata: Mapping[str, str] | None = None,
     live: LiveSink | None = None,
+    spread: int | None = None,
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
@@ -223,7 +226,8 @@ def simulate(
     the configuration, the wiring and the URDF; ``record_metadata`` goes into its
     ``run`` metadata (a scenario's name, the command line). ``live`` (a live view,
     :class:`whexar.record.live.LiveView`) gets everything the recorder writes; with no
-    ``record`` it then records to nowhere.
+    ``record`` it then records to nowhere. ``spread`` is the seed of the robot's parts
+    (:mod:`whexar.sim.spread`); ``None``: the perfect world.
     """
     cfg = load_config(config) if config else RobotConfig()
     model = load_model(cfg, terrain=terrain, timestep=timestep)
@@ -237,6 +241,8 @@ def simulate(
     i2c = FakeSMBus(cfg.imu.i2c_bus)
     i2c.attach(cfg.imu.address, chip)
     world = SimWorld(model, chain, cfg=cfg, board=board, imu=chip)
+    if spread is not None:
+        apply_spread(Spread.draw(spread, model, len(world.joints)), world)
     x0, y0, yaw0 = start
     seat = cfg.locomotion.sit_height_mm / 1000 + 0.002
     # Seated on the ground where the start is: parallel to a slope, turned by the yaw.
