@@ -448,10 +448,10 @@ class SimWorld:
         duty_velocity = (self._kvp * error + self._kvi * stepped) * (1.0 / PWM_LIMIT)
         free = self._velocity & (np.abs(duty_velocity) < MAX_DUTY)  # no wind-up saturated
         self._integral = np.where(free, stepped, self._integral)
-        error = self._desired - q
-        if self.dead_zone_rad is not None:
-            error = np.sign(error) * np.maximum(np.abs(error) - self.dead_zone_rad, 0.0)
-        duty = np.where(self._velocity_mode, duty_velocity, self._kp * error)
+        lag = self._desired - q
+        if self.dead_zone_rad is not None:  # gear backlash (whexar.sim.spread)
+            lag = np.sign(lag) * np.maximum(np.abs(lag) - self.dead_zone_rad, 0.0)
+        duty = np.where(self._velocity_mode, duty_velocity, self._kp * lag)
         duty = np.minimum(np.maximum(duty, -MAX_DUTY), MAX_DUTY)
         # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft; torque off: coasting.
         tau: np.ndarray = (duty * self._drive_gain - self._emf_gain * w) * self._on_f

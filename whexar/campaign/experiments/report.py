@@ -8,11 +8,18 @@ table ``whexar sim --experiments`` prints.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
-from whexar.campaign.experiments.figures import Figure, SimValue, ThesisValue, figures
+from whexar.campaign.experiments.figures import (
+    Figure,
+    SimValue,
+    ThesisValue,
+    figures,
+    seed_of,
+)
 from whexar.campaign.experiments.plots import PLOTS
 from whexar.campaign.experiments.reference import Reference, reference
 
@@ -121,7 +128,7 @@ def report_markdown(
         " figures. The notes give the reason we believe for a difference larger than the"
         f" figure's tolerance ({ref.tolerance * 100:g} % for most).",
         "",
-        *_seeds_paragraph(seeds_of(found)),
+        *_seeds_paragraph(found, rows),
         table_markdown(found),
         "",
     ]
@@ -135,15 +142,28 @@ def report_markdown(
     return "\n".join(lines)
 
 
-def _seeds_paragraph(seeds: int) -> list[str]:
+def _seeds_paragraph(found: Sequence[Figure], rows: Sequence[Row]) -> list[str]:
+    """What the seeds are, and how many runs each has, when there are several."""
+    seeds = seeds_of(found)
     if seeds == 1:
         return []
+    runs = Counter(seed_of(r) for r in rows)
+    counts = ", ".join(
+        f"seed {s}: {n} runs"
+        for s, n in sorted(runs.items(), key=lambda e: -1 if e[0] is None else e[0])
+    )
+    uneven = len(set(runs.values())) > 1
     return [
-        f"Every run was repeated for {seeds} seeds of the spread of real parts (sensor gains"
-        " and offsets, wheel friction, masses, gear backlash, the USB adapter's delays, each"
-        ' within its datasheet\'s band: docs/sim.md, "Spread of real parts"). *sim* is the'
-        " median over the seeds, *min–max* the smallest and largest, and the note that of the"
-        " seed at the median.",
+        f"The runs are {seeds} robots, each drawn from its seed within the spread of real parts"
+        " (sensor gains and offsets, wheel friction, masses, gear backlash, the USB adapter's"
+        ' delays, each within its datasheet\'s band: docs/sim.md, "Spread of real parts");'
+        f" {counts}. *sim* is the median over the seeds, *min–max* the smallest and largest,"
+        " and the note that of the seed at the median."
+        + (
+            " A seed that ran fewer slopes of a sweep finds its steepest slope on those."
+            if uneven
+            else ""
+        ),
         "",
     ]
 
