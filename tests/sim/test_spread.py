@@ -90,3 +90,29 @@ def test_one_seed_one_run_other_seeds_other_runs() -> None:
     assert _hash(0, True) != _hash(0, False)
     # Without the spread the seed moves nothing on a terrain without rocks.
     assert _hash(0, False) == _hash(1, False)
+
+
+def test_the_sensors_read_through_their_parts() -> None:
+    from whexar.sensors.imu_emulator import FakeLsm9ds1
+    from whexar.sim.run import seated_angles
+    from whexar.sim.world import fsr_counts
+
+    chain = ServoChain.for_models(CFG.servos(), baudrate=CFG.bus.baudrate)
+    chip = FakeLsm9ds1()
+    world = SimWorld(load_model(CFG), chain, cfg=CFG, imu=chip)
+    drawn = sp.Spread.draw(2, world.model, len(world.joints))
+    sp.apply(drawn, world)
+    # Seated 1 mm into the floor: the wheels pressed on it, the force sensors loaded.
+    seat = CFG.locomotion.sit_height_mm / 1000 - 0.001
+    world.set_pose(seated_angles(CFG), base_xyz=(0.0, 0.0, seat))
+    assert min(world.contact_forces) > 1.0
+    nominal = [fsr_counts(f) for f in world.contact_forces]
+    assert world.fsr_counts != nominal
+    for force, counts, gain in zip(
+        world.contact_forces, world.fsr_counts, drawn.fsr_gain, strict=True
+    ):
+        low = fsr_counts(force * gain * (1 - sp.FSR_REPEAT))
+        high = fsr_counts(force * gain * (1 + sp.FSR_REPEAT))
+        assert low <= counts <= high
+    offset = [a - b for a, b in zip(chip.accel_g, world.accel_g, strict=True)]
+    assert offset == pytest.approx(list(drawn.accel_offset_g))
