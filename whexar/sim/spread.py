@@ -52,7 +52,8 @@ IR_GAIN: Final = 0.25 / 1.9
 typically 1.9 V (Sharp GP2Y0A21YK data sheet, "difference of output voltage")."""
 ACCEL_OFFSET_G: Final = 0.090
 """Accelerometer zero-g offset per axis: ±90 mg (LSM9DS1 data sheet DocID025715,
-Table 3, "linear acceleration typical zero-g level offset accuracy")."""
+Table 3, "linear acceleration typical zero-g level offset accuracy"). ST defines the
+typical offset as a population's standard deviation: uniform within ± it is narrower."""
 GYRO_OFFSET_DPS: Final = 30.0
 """Gyroscope zero-rate level per axis: ±30 dps (LSM9DS1 data sheet, Table 3, "angular
 rate typical zero-rate level")."""
