@@ -125,7 +125,7 @@ def test_unknown_keys_are_named_before_anything_runs() -> None:
     assert found[0].startswith("run 0000: config.locomotion.nope = 1: unknown key; allowed here: ")
     found = _problems({"scenario": "wheels", "grid": {"bogus": [1]}})
     assert found == [
-        "grid.bogus = 1: a scenario key (name, description, duration_s, seed, terrain, "
+        "grid.bogus = 1: a scenario key (name, description, duration_s, seed, spread, terrain, "
         "start, commands, faults, sensor_faults, config, tilt, supply, motors, with .key and "
         "[index] inside them), "
         "config.<section>.<key>, measure.from_s, measure.to_s, timeout_s or label"

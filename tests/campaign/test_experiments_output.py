@@ -2,7 +2,10 @@
 
 ``golden/<set>/rows.jsonl`` holds one made-up row per run of the campaign (one
 set mostly failing — falls, slides, turns, failed and missing runs; one mostly
-passing; one where every slope passes), so every branch of the notes is taken.
+passing; one where every slope passes), so every branch of the notes is taken; and
+``seeds``, the mostly passing set over three seeds of the spread of real parts (its
+numbers scaled by 0.97, 1 and 1.04, one seed's circle failed), for the medians and
+their min–max.
 The other files are what ``whexar sim --experiments`` prints for them (the
 table, ``--json``) and the report it writes. They were written before the
 thesis's figures moved from code into their data file, and only the report's
@@ -23,7 +26,7 @@ from whexar.campaign import Row
 from whexar.campaign.experiments import figures, report_markdown, table_text
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
-SETS = ("rough", "good", "perfect")
+SETS = ("rough", "good", "perfect", "seeds")
 
 
 def _rows(name: str) -> list[Row]:

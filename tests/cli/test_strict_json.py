@@ -297,7 +297,7 @@ def test_campaign_and_its_results_files(
 def test_sim_experiments(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    # The experiments' 81 runs take minutes: one tiny run instead. The table's figures
+    # The experiments' 165 runs take minutes: one tiny run instead. The table's figures
     # then have no runs to read, and the simulation's side is null or "not simulated".
     monkeypatch.setattr(runner, "_local", in_process)
     monkeypatch.setattr(whexar.campaign, "load_campaign", lambda _name: tiny_campaign())

@@ -227,7 +227,7 @@ def _experiments(args: argparse.Namespace) -> int:
     from whexar.campaign.experiments import figures, table_text
     from whexar.cli.campaign import FAILED_STATUS, CampaignProgress, summary_lines
 
-    alone = ("video", "view", "live", "record", "duration", "seed")
+    alone = ("video", "view", "live", "record", "duration", "seed", "spread")
     given = [f"--{name}" for name in alone if getattr(args, name) not in (None, False)]
     if given:
         raise UsageError(f"--experiments runs its own campaign: drop {', '.join(given)}")
@@ -269,7 +269,9 @@ def _sim(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         print_problems(exc)
         return 1
-    scenario = scenario.with_overrides(duration_s=args.duration, seed=args.seed)
+    scenario = scenario.with_overrides(
+        duration_s=args.duration, seed=args.seed, spread=True if args.spread else None
+    )
     recorder = None
     if args.video is not None:
         from whexar.sim.video import VideoRecorder, select_gl
@@ -346,7 +348,15 @@ def add_commands(commands: Commands) -> None:
         "--seed",
         type=_seed,
         metavar="N",
-        help="seed of the scenario's random terrain features (default: the scenario's)",
+        help="seed of the scenario's random terrain features and, with --spread, of the "
+        "robot's parts (default: the scenario's)",
+    )
+    sim.add_argument(
+        "--spread",
+        action="store_true",
+        help="draw the robot's parts from the seed within their datasheets' spread "
+        "(sensor gains and offsets, friction, masses, backlash, reply delays; "
+        "default: the scenario's spread key, off unless it says so)",
     )
     sim.add_argument(
         "--report",

@@ -54,6 +54,8 @@ from whexar.sim.model import TIMESTEP_S, load_model
 from whexar.sim.motors import DEFAULT_MOTORS, MotorSource
 from whexar.sim.power import Supply
 from whexar.sim.series import NoMessageLog, RunSeries
+from whexar.sim.spread import Spread
+from whexar.sim.spread import apply as apply_spread
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.tilt import BoardTilt
 from whexar.sim.world import SimWorld
@@ -261,6 +263,7 @@ def simulate(
     keep_log: bool = False,
     supply: Supply | None = None,
     motor_source: MotorSource = DEFAULT_MOTORS,
+    spread: int | None = None,
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
@@ -283,6 +286,8 @@ def simulate(
     The result keeps compact series of the messages (:class:`~whexar.sim.series.RunSeries`),
     so a run's memory does not grow with every message; ``keep_log=True`` keeps every
     message in ``result.run.log`` too (tests that look at messages).
+    ``spread`` is the seed of the robot's parts (:mod:`whexar.sim.spread`); ``None``: the
+    perfect world.
     """
     cfg = load_config(config) if config else RobotConfig()
     model = load_model(cfg, terrain=terrain, timestep=timestep)
@@ -305,6 +310,8 @@ def simulate(
         motor_source=motor_source,
         tilt=tilt,
     )
+    if spread is not None:
+        apply_spread(Spread.draw(spread, model, len(world.joints)), world)
     x0, y0, yaw0 = start
     seat = cfg.locomotion.sit_height_mm / 1000 + 0.002
     # Seated on the ground where the start is: parallel to a slope, turned by the yaw.

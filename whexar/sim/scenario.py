@@ -68,7 +68,10 @@ it. ``motors`` is ``"bam"`` (the default) or ``"datasheet"``
     charge = 0.8
 
 *Seed.* The world is deterministic on virtual time; the seed places the
-random features of a table terrain (rocks without a seed of their own). A
+random features of a table terrain (rocks without a seed of their own) and, with
+``spread = true`` (default false: the nominal robot), draws the robot's parts
+within their datasheets' spread (:mod:`whexar.sim.spread`): sensor gains and
+offsets, wheel friction, masses, backlash, reply delays. A
 fault plan keeps its own seed. Sensor faults are ``[[sensor_faults]]`` tables
 (:class:`~whexar.sim.faults.SensorFault`: a board or IMU unplugged, corrupted or
 dropped frames, a frozen IMU, a dead force sensor or rangefinder, at a time).
@@ -293,6 +296,9 @@ class ScenarioFile(CheckedSection):
     description: str = ""
     duration_s: Positive
     seed: int = Field(default=0, ge=0)
+    spread: bool = False
+    """Draw the robot's parts from the seed (:mod:`whexar.sim.spread`); off: the
+    datasheets' nominal robot, the same run for every seed but the terrain's."""
     terrain: Annotated[
         Annotated[TerrainName, Tag("<name>")] | Annotated[TerrainSpec, Tag("<table>")],
         # Tagged as in the configuration's bus.plan: a bad table is reported as a table.
@@ -346,11 +352,18 @@ class Scenario:
     """The file it came from (or ``<scenario>``)."""
     spec: ScenarioFile
     """The document, kept so that :meth:`with_overrides` can rebuild a seeded terrain."""
+    spread: bool = False
+    """Whether the seed draws the robot's parts too (:mod:`whexar.sim.spread`)."""
 
     def with_overrides(
-        self, *, duration_s: float | None = None, seed: int | None = None
+        self,
+        *,
+        duration_s: float | None = None,
+        seed: int | None = None,
+        spread: bool | None = None,
     ) -> Scenario:
-        """The same scenario for another duration or seed (the command line's options)."""
+        """The same scenario for another duration, seed or spread (the command line's
+        options)."""
         if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
             raise UsageError(f"duration {duration_s!r}: expected a number of seconds > 0")
         if seed is not None and seed < 0:
@@ -364,6 +377,8 @@ class Scenario:
             out = replace(out, seed=seed, terrain=terrain)
         if duration_s is not None:
             out = replace(out, duration_s=duration_s)
+        if spread is not None:
+            out = replace(out, spread=spread)
         return out
 
     def run(
@@ -395,9 +410,11 @@ class Scenario:
             record_metadata={
                 "scenario": self.name,
                 "seed": str(self.seed),
+                "spread": str(self.spread).lower(),
             },
             supply=self.spec.supply.build(),
             motor_source=self.spec.motors,
+            spread=self.seed if self.spread else None,
         )
 
 
@@ -485,6 +502,7 @@ def parse_scenario(
         config_path=folder / spec.config if spec.config is not None else None,
         source=source,
         spec=spec,
+        spread=spec.spread,
     )
 
 

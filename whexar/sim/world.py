@@ -52,7 +52,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from operator import is_not
 from typing import Final
@@ -306,6 +306,11 @@ class SimWorld:
         self.contact_forces: list[float] = [0.0] * 6
         """Each leg's wheel's normal force on the ground (N), as the force sensors see it."""
         self.ir_counts: list[int] = [0, 0]
+        self.sense_hook: Callable[[SimWorld], None] | None = None
+        """Called after every refresh of the sensors: the parts' spread reads them
+        (:mod:`whexar.sim.spread`)."""
+        self.dead_zone_rad: np.ndarray | None = None
+        """Each joint's half backlash: the position loop's dead zone (``None``: none)."""
         if board is not None:
             board.script = self._board_inputs
         mujoco.mj_forward(model, self.data)
@@ -482,7 +487,10 @@ class SimWorld:
         duty_velocity = (self._kvp * error + self._kvi * stepped) * (1.0 / PWM_LIMIT)
         free = self._velocity & (np.abs(duty_velocity) < MAX_DUTY)  # no wind-up saturated
         self._integral = np.where(free, stepped, self._integral)
-        duty = np.where(self._velocity_mode, duty_velocity, self._kp * (self._desired - q))
+        lag = self._desired - q
+        if self.dead_zone_rad is not None:  # gear backlash (whexar.sim.spread)
+            lag = np.sign(lag) * np.maximum(np.abs(lag) - self.dead_zone_rad, 0.0)
+        duty = np.where(self._velocity_mode, duty_velocity, self._kp * lag)
         duty = np.minimum(np.maximum(duty, -MAX_DUTY), MAX_DUTY)
         # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft; torque off: coasting.
         tau: np.ndarray = (duty * self._drive_gain - self._emf_gain * w) * self._on_f
@@ -565,6 +573,8 @@ class SimWorld:
             if self.imu is not None:
                 self.imu.accel_g = self.accel_g
                 self.imu.gyro_dps = (wy, -wx, wz)
+        if self.sense_hook is not None:
+            self.sense_hook(self)
 
     def _board_inputs(self, board_t: float) -> dict[str, int]:
         counts = dict(zip(FSR_KEYS, self.fsr_counts, strict=True))

@@ -157,6 +157,9 @@ class ServoChain:
         """A physics world that moves every servo's horn at once: ``mover(t)`` replaces
         advancing each servo's :attr:`~VirtualServo.dynamics` (it calls
         :meth:`VirtualServo.follow` on each); ``None``: each servo's own dynamics."""
+        self.reply_jitter: Callable[[], float] | None = None
+        """Seconds added to each reply's turnaround (the USB adapter's latency,
+        :mod:`whexar.sim.spread`); ``None``: the timing model's alone."""
         self.stats = ChainStats()
         self._decoder = PacketDecoder(max_length=0xFFFF)
 
@@ -285,7 +288,8 @@ class ServoChain:
         packets = 0
         nbytes = 0
         delay = 0.0
-        at = before + timing.turnaround_s
+        jitter = self.reply_jitter() if self.reply_jitter is not None else 0.0
+        at = before + timing.turnaround_s + jitter
         marks: list[tuple[int, float]] = []
         for servo, data in replies:
             if drop > 0.0 and rng.random() < drop:
@@ -302,7 +306,7 @@ class ServoChain:
         if not packets:
             return 0.0
         self.stats.replies += packets
-        cost = timing.read_s(0, packets, nbytes, delay / packets)
+        cost = timing.read_s(0, packets, nbytes, delay / packets) + jitter
         # A fast status packet is one packet: it arrives whole. The last mark is the cost.
         marks = marks[:-1] if not fast else []
         arrivals.extend(marks)

@@ -15,6 +15,12 @@ two differ by more than the figure's tolerance, the note gives the reason we
 believe in, chosen by the direction of the difference; every number in the
 note comes from the rows.
 
+*Seeds.* When the rows carry more than one :data:`SEED_KEY` (the campaign repeats
+its runs over seeds of the spread of real parts, :mod:`whexar.sim.spread`), the
+figures are worked out for each seed's rows alone and then merged: a figure's
+``sim`` is the median of the seeds' numbers, ``spread`` their minimum and maximum,
+and its note the note of the seed at the median (the lower one of an even count).
+
 *Outcomes of the sweep.* A tripod or riding run *made it* when the robot did
 not fall, kept its heading within the reference's ``max_heading_change_deg``
 and went up the plane at no less than its ``min_progress_fraction`` of the
@@ -29,7 +35,7 @@ from __future__ import annotations
 import math
 import statistics
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Final, TypeAlias
 
 from whexar.actors.locomotion.intent import POSE_LIMIT_RAD
@@ -43,6 +49,8 @@ SLOPE_KEY: Final = "terrain.slope_deg"
 """The variation key of the plane's slope (absent: the flat)."""
 TROCHANTER_KEY: Final = "config.locomotion.trochanter_follows_pitch"
 """The variation key of "with/without the trochanter" (eq. 4.18; absent: the default, on)."""
+SEED_KEY: Final = "seed"
+"""The variation key of the scenario's seed: the spread of real parts (absent: one world)."""
 
 # The simulation's limits, not the thesis's: they decide what cannot be expressed.
 MAX_BODY_PITCH_DEG: Final = math.degrees(POSE_LIMIT_RAD)
@@ -74,10 +82,24 @@ class Figure:
     source: str = ""
     """Where in the thesis (section, table, equation)."""
     note: str = ""
+    seeds: int = 1
+    """How many seeds the figure is the median of (1: one world)."""
+    spread: tuple[float, float] | None = None
+    """The smallest and largest of the seeds' numbers (``None``: one seed, or no number)."""
 
     def to_json(self) -> dict[str, Any]:
-        """``{"name", "unit", "thesis", "sim"}``: the row of ``whexar sim --experiments --json``."""
-        return {"name": self.name, "unit": self.unit, "thesis": self.thesis, "sim": self.sim}
+        """``{"name", "unit", "thesis", "sim"}``, and over seeds ``"seeds"`` and
+        ``"spread"`` ([min, max]): the row of ``whexar sim --experiments --json``."""
+        out: dict[str, Any] = {
+            "name": self.name,
+            "unit": self.unit,
+            "thesis": self.thesis,
+            "sim": self.sim,
+        }
+        if self.seeds > 1:
+            out["seeds"] = self.seeds
+            out["spread"] = None if self.spread is None else list(self.spread)
+        return out
 
 
 # --------------------------------------------------------------------------- rows
@@ -87,6 +109,12 @@ def slope_of(row: Row) -> float:
     """The row's slope (°): its :data:`SLOPE_KEY`, 0 on the flat."""
     value = row.variation.get(SLOPE_KEY, 0.0)
     return float(value) if isinstance(value, int | float) else 0.0
+
+
+def seed_of(row: Row) -> int | None:
+    """The row's seed (:data:`SEED_KEY`); ``None`` when the campaign does not vary it."""
+    value = row.variation.get(SEED_KEY)
+    return value if isinstance(value, int) and not isinstance(value, bool) else None
 
 
 def trochanter_of(row: Row) -> bool:
@@ -422,8 +450,18 @@ def figures(rows: Sequence[Row], ref: Reference | None = None) -> list[Figure]:
     """The thesis's figures beside the simulation's, from the campaign's rows (see the
     module docstring); one :class:`Figure` per figure, in the report's order: the
     reference's single figures (6.4, 6.5, 6.8.1), Table 6.7, Table 6.6 and the saving of
-    6.8.1, the steepest slopes (6.7.6). ``ref``: the shipped reference by default."""
+    6.8.1, the steepest slopes (6.7.6). ``ref``: the shipped reference by default.
+
+    Rows of several seeds give each figure's median over them (the module docstring)."""
     ref = reference() if ref is None else ref
+    seeds = sorted({seed_of(r) for r in rows}, key=lambda s: -1 if s is None else s)
+    if len(seeds) <= 1:
+        return _one_world(rows, ref)
+    per_seed = [_one_world([r for r in rows if seed_of(r) == s], ref) for s in seeds]
+    return [_over_seeds(same) for same in zip(*per_seed, strict=True)]
+
+
+def _one_world(rows: Sequence[Row], ref: Reference) -> list[Figure]:
     out = [_single(ref, f, rows) for f in ref.figures]
     out += _table_6_7(ref, rows)
     out += _table_6_6(ref, rows)
@@ -431,7 +469,35 @@ def figures(rows: Sequence[Row], ref: Reference | None = None) -> list[Figure]:
     return out
 
 
+def _sim_number(f: Figure) -> float | None:
+    value = f.sim
+    return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+def _over_seeds(same: Sequence[Figure]) -> Figure:
+    """One figure from each seed's: the median, the min–max and the median seed's note."""
+    numbers = sorted(
+        ((v, f) for f in same if (v := _sim_number(f)) is not None), key=lambda p: p[0]
+    )
+    if not numbers:
+        return replace(same[0], seeds=len(same))
+    values = [v for v, _ in numbers]
+    middle = numbers[(len(numbers) - 1) // 2][1]
+    note = middle.note
+    if len(numbers) < len(same):
+        missing = f"{len(same) - len(numbers)} of {len(same)} seeds gave no value."
+        note = _joined(note, missing)
+    return replace(
+        middle,
+        sim=statistics.median(values),
+        note=note,
+        seeds=len(same),
+        spread=(values[0], values[-1]),
+    )
+
+
 __all__ = [
+    "SEED_KEY",
     "SLOPE_KEY",
     "TROCHANTER_KEY",
     "Figure",
@@ -442,6 +508,7 @@ __all__ = [
     "judge_of",
     "made_it",
     "number",
+    "seed_of",
     "slope_of",
     "steepest",
     "tilted",

@@ -5,12 +5,15 @@ Each plot takes the campaign's rows and the reference
 and the thesis's points it draws come from the reference file, so a figure
 corrected there is corrected in the plots too. A fallen robot's current says
 nothing of the stance or the movement: the current plots show only the runs that
-made it or held.
+made it or held. Over seeds (the spread of real parts), the current plots draw each
+slope's median over the seeds' runs that made it or held, the slope sweep every
+run's outcome on one another, and the bar plots the first seed's runs.
 """
 
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
@@ -38,18 +41,21 @@ Plot = Callable[["Sequence[Row]", "Reference", Path], Path]
 def _series(
     rows: Sequence[Row], ref: Reference, label: str, trochanter: bool | None, key: str
 ) -> tuple[list[float], list[float]]:
-    """``key`` against the slope for the runs of ``label`` that made it or held."""
+    """``key`` against the slope for the runs of ``label`` that made it or held (over
+    seeds: each slope's median)."""
     judge = judge_of(label)
-    points = sorted(
-        (slope_of(r), v)
-        for r in rows
-        if r.label == label
-        and (trochanter is None or trochanter_of(r) == trochanter)
-        and judge(r, ref.rules) is True
-        for v in [number(r, key)]
-        if v is not None
-    )
-    return [p[0] for p in points], [p[1] for p in points]
+    by_slope: dict[float, list[float]] = {}
+    for r in rows:
+        if (
+            r.label == label
+            and (trochanter is None or trochanter_of(r) == trochanter)
+            and judge(r, ref.rules) is True
+        ):
+            v = number(r, key)
+            if v is not None:
+                by_slope.setdefault(slope_of(r), []).append(v)
+    slopes = sorted(by_slope)
+    return slopes, [statistics.median(by_slope[x]) for x in slopes]
 
 
 def plot_static(rows: Sequence[Row], ref: Reference, path: Path) -> Path:

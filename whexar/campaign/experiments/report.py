@@ -8,11 +8,18 @@ table ``whexar sim --experiments`` prints.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
-from whexar.campaign.experiments.figures import Figure, SimValue, ThesisValue, figures
+from whexar.campaign.experiments.figures import (
+    Figure,
+    SimValue,
+    ThesisValue,
+    figures,
+    seed_of,
+)
 from whexar.campaign.experiments.plots import PLOTS
 from whexar.campaign.experiments.reference import Reference, reference
 
@@ -38,25 +45,52 @@ def format_value(value: ThesisValue | SimValue, unit: str = "") -> str:
     return f"{value:.3g}"
 
 
+def seeds_of(found: Sequence[Figure]) -> int:
+    """How many seeds the figures are medians of (1: one world, no spread column)."""
+    return max((f.seeds for f in found), default=1)
+
+
+def format_spread(f: Figure) -> str:
+    """A figure's min–max over seeds (``0.113…0.121``: a dash would read as a minus);
+    ``—`` for none."""
+    if f.spread is None:
+        return "—"
+    low, high = f.spread
+    return f"{format_value(low)}…{format_value(high)}"
+
+
 def table_markdown(found: Sequence[Figure]) -> str:
-    """The figures as one Markdown table."""
-    lines = ["| figure | unit | thesis | sim | source | note |", "|---|---|---|---|---|---|"]
+    """The figures as one Markdown table; over seeds, the sim's median and its min–max."""
+    if seeds_of(found) == 1:
+        lines = ["| figure | unit | thesis | sim | source | note |", "|---|---|---|---|---|---|"]
+    else:
+        lines = [
+            "| figure | unit | thesis | sim (median) | min–max | source | note |",
+            "|---|---|---|---|---|---|---|",
+        ]
     for f in found:
         note = f.note.replace("|", "\\|")
+        spread = "" if seeds_of(found) == 1 else f" | {format_spread(f)}"
         lines.append(
-            f"| {f.name} | {f.unit} | {format_value(f.thesis)} | {format_value(f.sim)} "
+            f"| {f.name} | {f.unit} | {format_value(f.thesis)} | {format_value(f.sim)}{spread} "
             f"| {f.source} | {note} |"
         )
     return "\n".join(lines)
 
 
 def table_text(found: Sequence[Figure]) -> str:
-    """The figures for the terminal: name, thesis, sim and unit, one a line."""
+    """The figures for the terminal: name, thesis, sim and unit, one a line; over seeds,
+    the sim's median and its min–max."""
     width = max((len(f.name) for f in found), default=10)
-    lines = [f"{'figure':<{width}}  {'thesis':>10}  {'sim':>13}  unit"]
+    seeds = seeds_of(found)
+    head = "sim" if seeds == 1 else "sim (median)"
+    spread = "" if seeds == 1 else f"  {'min–max':>15}"
+    lines = [f"{'figure':<{width}}  {'thesis':>10}  {head:>13}{spread}  unit"]
     for f in found:
+        spread = "" if seeds == 1 else f"  {format_spread(f):>15}"
         lines.append(
-            f"{f.name:<{width}}  {format_value(f.thesis):>10}  {format_value(f.sim):>13}  {f.unit}"
+            f"{f.name:<{width}}  {format_value(f.thesis):>10}  {format_value(f.sim):>13}"
+            f"{spread}  {f.unit}"
         )
     return "\n".join(lines)
 
@@ -94,6 +128,7 @@ def report_markdown(
         " figures. The notes give the reason we believe for a difference larger than the"
         f" figure's tolerance ({ref.tolerance * 100:g} % for most).",
         "",
+        *_seeds_paragraph(found, rows),
         table_markdown(found),
         "",
     ]
@@ -105,6 +140,32 @@ def report_markdown(
     for name, _, caption in PLOTS:
         lines += [f"![{caption}]({(IMG_DIR / name).as_posix()})", "", f"*{caption}.*", ""]
     return "\n".join(lines)
+
+
+def _seeds_paragraph(found: Sequence[Figure], rows: Sequence[Row]) -> list[str]:
+    """What the seeds are, and how many runs each has, when there are several."""
+    seeds = seeds_of(found)
+    if seeds == 1:
+        return []
+    runs = Counter(seed_of(r) for r in rows)
+    counts = ", ".join(
+        f"seed {s}: {n} runs"
+        for s, n in sorted(runs.items(), key=lambda e: -1 if e[0] is None else e[0])
+    )
+    uneven = len(set(runs.values())) > 1
+    return [
+        f"The runs are {seeds} robots, each drawn from its seed within the spread of real parts"
+        " (sensor gains and offsets, wheel friction, masses, gear backlash, the USB adapter's"
+        ' delays, each within its datasheet\'s band: docs/sim.md, "Spread of real parts");'
+        f" {counts}. *sim* is the median over the seeds, *min–max* the smallest and largest,"
+        " and the note that of the seed at the median."
+        + (
+            " A seed that ran fewer slopes of a sweep finds its steepest slope on those."
+            if uneven
+            else ""
+        ),
+        "",
+    ]
 
 
 def write_report(rows: Sequence[Row], out_dir: str | Path) -> list[Path]:
@@ -123,8 +184,10 @@ def write_report(rows: Sequence[Row], out_dir: str | Path) -> list[Path]:
 
 __all__ = [
     "IMG_DIR",
+    "format_spread",
     "format_value",
     "report_markdown",
+    "seeds_of",
     "table_markdown",
     "table_text",
     "write_report",
