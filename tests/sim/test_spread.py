@@ -13,6 +13,7 @@ from whexar.config import RobotConfig
 from whexar.sim import spread as sp
 from whexar.sim.model import load_model
 from whexar.sim.scenario import load_scenario, parse_scenario
+from whexar.sim.terrain import GROUND_FRICTION
 from whexar.sim.world import SimWorld
 
 CFG = RobotConfig()
@@ -34,7 +35,8 @@ def test_draws_repeat_by_seed_and_stay_within_their_amplitudes() -> None:
     assert all(abs(o) <= sp.GYRO_OFFSET_DPS for o in a.gyro_offset_dps)
     lo, hi = sp.FRICTION_RANGE
     assert len(a.wheel_friction) == 6
-    assert all(lo <= mu <= hi for mu in a.wheel_friction)
+    nominal = GROUND_FRICTION[0]
+    assert all(lo * nominal <= mu <= hi * nominal for mu in a.wheel_friction)
     assert all(abs(f - 1) <= sp.MASS_TOLERANCE for f in a.mass_factor)
     assert all(abs(s) <= sp.COM_SHIFT_M for s in a.com_shift_m)
     assert len(a.backlash_rad) == 42

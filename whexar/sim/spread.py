@@ -33,6 +33,7 @@ import mujoco
 import numpy as np
 
 from whexar.robot import LEG_NAMES
+from whexar.sim.terrain import GROUND_FRICTION
 from whexar.sim.world import fsr_counts
 
 if TYPE_CHECKING:
@@ -57,10 +58,11 @@ typical offset as a population's standard deviation: uniform within ± it is nar
 GYRO_OFFSET_DPS: Final = 30.0
 """Gyroscope zero-rate level per axis: ±30 dps (LSM9DS1 data sheet, Table 3, "angular
 rate typical zero-rate level")."""
-FRICTION_RANGE: Final = (0.8, 1.0)
-"""A wheel's sliding friction on the ground: rubber on concrete, µk 0.8 to µs 1.0
-(Serway and Beichner, Table 5.2; the nominal 0.9 of :data:`~whexar.sim.terrain.GROUND_FRICTION`
-lies between)."""
+FRICTION_RANGE: Final = (0.8 / 0.9, 1.0 / 0.9)
+"""A wheel's sliding friction on the ground, as a factor on the nominal
+(:data:`~whexar.sim.terrain.GROUND_FRICTION`, 1.3, which standing on the thesis's 50°
+needs): ±11 %, the spread of rubber on concrete, µk 0.8 to µs 1.0 about their middle
+(Serway and Beichner, Table 5.2)."""
 MASS_TOLERANCE: Final = 0.05
 """Every link's mass and inertia: ±5 %, cables, screws and glue that no drawing lists
 (an estimate; the servos' own masses are single figures in their e-manuals)."""
@@ -127,7 +129,9 @@ class Spread:
             ir_gain=(ir_right, ir_left),
             accel_offset_g=(ax, ay, az),
             gyro_offset_dps=(gx, gy, gz),
-            wheel_friction=tuple(float(v) for v in rng.uniform(lo, hi, len(LEG_NAMES))),
+            wheel_friction=tuple(
+                GROUND_FRICTION[0] * float(v) for v in rng.uniform(lo, hi, len(LEG_NAMES))
+            ),
             mass_factor=tuple(1.0 + f for f in within(MASS_TOLERANCE, len(robot))),
             com_shift_m=(cx, cy, cz),
             backlash_rad=tuple(float(v) for v in rng.uniform(0.0, BACKLASH_RAD, joints)),

@@ -83,6 +83,7 @@ from whexar.sim.motors import (
     position_duty_per_rad,
 )
 from whexar.sim.power import BenchSupply, Supply, supply_amps
+from whexar.sim.terrain import GROUND_FRICTION, ROLLING_RAD_S, ROLLING_TRACTION
 from whexar.sim.tilt import BoardTilt
 
 _GAINS_SPAN: Final = slice(76, 86)
@@ -285,6 +286,16 @@ class SimWorld:
             mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_wheel") for leg in LEG_NAMES
         ]
         self._wheel_of = {g: leg for leg, g in enumerate(self._wheel_geoms)}
+        self._static_mu: np.ndarray | None = None
+        """Each wheel's static friction (the model's, or the spread's), once read."""
+        self._wheel_dofs = [
+            int(
+                model.jnt_dofadr[
+                    mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{leg}_wheel")
+                ]
+            )
+            for leg in LEG_NAMES
+        ]
         self._wrench = np.zeros(6)
         self._ray_geom = np.zeros(1, dtype=np.int32)
         self._ir_sites = [
@@ -372,6 +383,7 @@ class SimWorld:
         m, d, h = self.model, self.data, self.h
         if self.tilt is not None:  # a board raised by degrees a second: per transaction
             m.opt.gravity[:] = self.tilt.gravity(self.time, self._g)
+        self._grip()
         qadr, dadr, act = self._qadr, self._dadr, self._act
         start, w0 = self.time, d.qvel[dadr].copy()  # a view when dadr is a slice
         bridge_c = 0.0
@@ -390,6 +402,16 @@ class SimWorld:
         self._read_joints(d.qpos[qadr], w1, (w1 - w0) / (self.time - start))
         if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
             self._sense()
+
+    def _grip(self) -> None:
+        """A rolling wheel grips less than a still one (:data:`~whexar.sim.terrain.
+        ROLLING_TRACTION`): each wheel's friction for the coming steps, from its speed."""
+        m, geoms = self.model, self._wheel_geoms
+        if self._static_mu is None:
+            self._static_mu = m.geom_friction[geoms, 0].copy()
+        rolling = np.abs(self.data.qvel[self._wheel_dofs]) > ROLLING_RAD_S
+        scale = ROLLING_TRACTION / GROUND_FRICTION[0]
+        m.geom_friction[geoms, 0] = np.where(rolling, self._static_mu * scale, self._static_mu)
 
     def _orders(self) -> None:
         """Every servo's orders as arrays, read again only where a write made a new drive."""

@@ -306,7 +306,8 @@ TILT_SPAN_S: Final = 2.0
 """The tilting board (6.7.6): the robot must hold or keep climbing over every span this long
 (a gait cycle and more; at 1°/s the board rises 2° in it)."""
 TILT_SLIDE_M: Final = 0.02
-"""A stance failed when the body moved more than this in a span (the rules' ``max_slide_m``)."""
+"""A stance failed when the body slid more than this down the board or sideways in a span
+(the rules' ``max_slide_m``)."""
 TILT_PROGRESS_FRACTION: Final = 0.25
 """A movement failed when it climbed at less than this share of its speed on the level
 board (the rules' ``min_progress_fraction``)."""
@@ -320,7 +321,8 @@ STILL_MPS: Final = 0.01
     "tilt_limit_deg",
     "°",
     "the tilting board (6.7.6): the board's angle at the start of the first 2 s span in "
-    "which the robot fell, turned > 30°, slid > 2 cm (standing) or climbed at < 25 % of its "
+    "which the robot fell, turned > 30°, slid > 2 cm down or across the board (standing) or "
+    "climbed at < 25 % of its "
     "speed on the level board (moving); when it never failed, the board's last angle",
 )
 def tilt_limit_deg(result: SimResult, window: Window) -> Value:
@@ -343,7 +345,9 @@ def tilt_limit_deg(result: SimResult, window: Window) -> Value:
         if moving:
             failed = _along_plane(a, b) / (b.t - a.t) < TILT_PROGRESS_FRACTION * speed
         else:
-            failed = math.dist((a.x, a.y, a.z), (b.x, b.y, b.z)) > TILT_SLIDE_M
+            # Down the board (it rises along +x) or sideways: as the trochanters turn with
+            # the board, their arcs carry the body uphill over its feet, which is no slide.
+            failed = max(a.x - b.x, abs(b.y - a.y)) > TILT_SLIDE_M
         failed = (
             failed or b.tilt > FALLEN_TILT_RAD or math.degrees(abs(yaw[k] - yaw[0])) > TILT_TURN_DEG
         )
