@@ -66,15 +66,15 @@ touches. The torsional and
 rolling terms only act on contacts with ``condim`` 4 or 6.
 """
 
-ROLLING_TRACTION: Final = 0.84
+ROLLING_TRACTION: Final = 0.9
 """A driven tyre's grip along the ground while it rolls, against :data:`GROUND_FRICTION`'s
-static grip: "when driving on wheels on 40° slopes, there was already considerable
-slipping" (thesis 6.7.6), so µ ≈ tan 40° = 0.84 riding, where the same tyres standing
-held 50° (µ ≥ 1.19). A rolling rubber tyre transmits its traction through a contact
-patch that partly slips, and its grip lies below its static one (the kinetic friction
-of rubber on concrete is 0.8 of its static: Serway and Beichner, Table 5.2; the thesis
-implies 0.65). The world lowers a wheel's friction to this while it turns
-(:class:`whexar.sim.world.SimWorld`)."""
+static grip. "When driving on wheels on 40° slopes, there was already considerable
+slipping" (thesis 6.7.6), and yet the robot climbed there at 0.15 m/s (Table 6.7): its
+rolling grip lay just above tan 40° = 0.84, where the same tyres standing held 50°
+(µ ≥ 1.19). 0.9 is just above it, the middle of rubber on concrete (µk 0.8, µs 1.0:
+Serway and Beichner, Table 5.2). A rolling rubber tyre transmits its traction through a
+contact patch that partly slips, and grips less than a still one. The world lowers a
+wheel's friction to this while it turns (:class:`whexar.sim.world.SimWorld`)."""
 ROLLING_RAD_S: Final = 0.2
 """A wheel turning faster than this (1 cm/s at the rim) rolls, and grips as it rolls."""
 BLOCK_FRICTION: Final = (0.6, 0.005, 0.0001)
