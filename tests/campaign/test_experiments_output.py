@@ -71,7 +71,7 @@ def test_the_rows_take_every_kind_of_note() -> None:
         "It draws",
         "the coordinator allows ±20°",
         "The thesis has no value here.",
-        "We think the motor model",  # a reason: higher
+        "The current is the supply's",  # a reason: higher
         "The motor model counts only",  # a reason: lower
     ):
         assert phrase in notes, phrase
