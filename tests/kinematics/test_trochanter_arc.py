@@ -16,7 +16,7 @@ CFG = RobotConfig()
 GEOMETRY = CFG.leg_geometry()
 FEET = stance_feet(CFG.stance("default"))
 # RM's neutral contact point in its leg frame (x outward, y down, z forward): coxa 0.
-NEUTRAL = tuple(float(v) for v in FEET[2])
+NEUTRAL = (float(FEET[2][0]), float(FEET[2][1]), float(FEET[2][2]))
 
 
 @pytest.mark.parametrize("deg", [-45.0, -32.0, -14.0, 5.0, 23.0])
@@ -37,7 +37,7 @@ def test_the_arc_of_a_neutral_foot_is_where_the_thesis_leg_puts_it(deg: float) -
 @pytest.mark.parametrize("leg", range(6))
 def test_every_foot_moves_along_the_body_so_the_polygon_shifts_whole(leg: int) -> None:
     theta = math.radians(-32.0)
-    foot = tuple(float(v) for v in FEET[leg])
+    foot = (float(FEET[leg][0]), float(FEET[leg][1]), float(FEET[leg][2]))
     arc = trochanter_arc(foot, theta)
     d = foot[1]
     assert np.subtract(arc, foot) == pytest.approx(
@@ -64,7 +64,8 @@ def _rotation(roll: float, pitch: float) -> np.ndarray:
     cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
     ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
     rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    return ry @ rx
+    product: np.ndarray = ry @ rx
+    return product
 
 
 @pytest.mark.parametrize(("roll", "pitch"), [(0.0, -0.4), (0.3, 0.0), (-0.2, 0.5), (0.1, -0.6)])
