@@ -62,7 +62,7 @@ from typing import TYPE_CHECKING, Final, cast
 
 from whexar.actors.messages import BusLost, ServoDegraded, ServoFault
 from whexar.bus.emulator.faults import FaultInjector
-from whexar.campaign.metrics import MetricFn, Value, Window, metric, path_speed
+from whexar.campaign.metrics import MetricFn, Value, Window, metric, progress_speed
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.messages import ActorStopped, SafeStop, StopRequested
@@ -259,21 +259,22 @@ def progress_after_m(result: SimResult, window: Window) -> Value:
 @metric(
     "speed_kept",
     "",
-    f"speed after the failure over speed in the {BEFORE_S:g} s before it (1: unchanged)",
+    f"net progress speed after the failure over the same in the {BEFORE_S:g} s before it "
+    "(1: unchanged; a robot treading in place keeps none)",
 )
 def speed_kept(result: SimResult, window: Window) -> Value:
     found = _after(result, window)
     if found is None:
         return None
     f, after = found
-    before = path_speed(Window(f.t - BEFORE_S, f.t).samples(result))
+    before = progress_speed(Window(f.t - BEFORE_S, f.t).samples(result))
     # Over the whole stretch after the failure, not the samples': once the runtime stops,
     # nothing steps the world any more and the samples stop at that time; the robot
     # made no more way.
     span = _end(result, window) - f.t
     if before is None or before < 1e-3 or span <= 0:
         return None
-    return travelled(after) / span / before
+    return progress(after) / span / before
 
 
 @metric("heading_change_deg", "°", "change of the body's yaw from the failure to the end")
@@ -392,7 +393,8 @@ class _Line:
     leg: str
     joint: str
     outcome: str | None
-    distance_m: float | None
+    progress_m: float | None
+    """The net progress from the failure to the end (m)."""
     speed_kept: float | None
     heading_deg: float | None
     detected_s: float | None
@@ -441,7 +443,7 @@ def _line(row: Row) -> _Line:
         leg,
         joint,
         outcome if isinstance(outcome, str) else None,
-        _number(m.get("distance_after_m")),
+        _number(m.get("progress_after_m")),
         _number(m.get("speed_kept")),
         _number(m.get("heading_change_deg")),
         _number(m.get("detected_after_s")),
@@ -507,19 +509,19 @@ def _markdown(lines: Sequence[_Line], image: str) -> str:
         "",
         "## Each servo",
         "",
-        "From the failure to the end of the walk: the distance the body made, the speed it",
-        "kept (against the 3 s before the failure) and how far its heading turned.",
+        "From the failure to the end of the walk: the net progress the body made, the speed",
+        "it kept (progress against the 3 s before the failure) and how far its heading turned.",
         "*Detected* is how long the bus took to leave the servo out (`ServoDegraded`); the",
         "events are the runtime's after the failure.",
         "",
-        "| id | leg | joint | outcome | distance after (m) | speed kept | heading change (°) "
+        "| id | leg | joint | outcome | progress after (m) | speed kept | heading change (°) "
         "| detected after (s) | events |",
         "|---:|---|---|---|---:|---:|---:|---:|---|",
     ]
     for ln in sorted(lines, key=lambda x: (x.servo_id is None, x.servo_id or 0)):
         out.append(
             f"| {'?' if ln.servo_id is None else ln.servo_id} | {ln.leg} | {ln.joint} "
-            f"| {ln.outcome or '–'} | {_fmt(ln.distance_m, '.2f')} "
+            f"| {ln.outcome or '–'} | {_fmt(ln.progress_m, '.2f')} "
             f"| {_fmt(ln.speed_kept, '.0%')} "
             f"| {_fmt(ln.heading_deg, '+.1f')} | {_fmt(ln.detected_s, '.2f')} "
             f"| {ln.events.replace('|', '/') or '–'} |"
@@ -581,8 +583,8 @@ def _grid(lines: Sequence[_Line], path: Path) -> Path:
             if ln is None:
                 continue
             text = f"{'?' if ln.servo_id is None else ln.servo_id}"
-            if ln.distance_m is not None:
-                text += f"\n{ln.distance_m:.2f} m"
+            if ln.progress_m is not None:
+                text += f"\n{ln.progress_m:.2f} m"
             if ln.heading_deg is not None:
                 text += f"\n{round(ln.heading_deg) + 0:+d}°"  # + 0: no "-0°"
             ax.text(c, r, text, ha="center", va="center", fontsize=8)
@@ -593,7 +595,7 @@ def _grid(lines: Sequence[_Line], path: Path) -> Path:
     ax.grid(which="minor", color="white", linewidth=2)
     ax.tick_params(which="minor", length=0)
     ax.set_title(
-        "One servo silent during a tripod walk: outcome, distance made and heading change after"
+        "One servo silent during a tripod walk: outcome, progress made and heading change after"
     )
     present = [o for o in OUTCOMES if any(ln.outcome == o for ln in lines)]
     handles = [Patch(color=OUTCOME_COLOURS[o], label=o) for o in present]
@@ -606,8 +608,8 @@ def _grid(lines: Sequence[_Line], path: Path) -> Path:
 def write_report(rows: Sequence[Row], out_dir: Path) -> list[Path]:
     """Write ``servo-failures.md`` and ``img/servo-failures.png`` into ``out_dir``.
 
-    One line per row (per servo): its ID, leg, joint, outcome, distance made after the
-    failure, heading change, detection time and the runtime's events. The folder's
+    One line per row (per servo): its ID, leg, joint, outcome, net progress made after
+    the failure, heading change, detection time and the runtime's events. The folder's
     layout is ``docs/``'s, so the two files can be copied there as they are. Returns
     the files written.
     """

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
 from whexar.runtime.messages import ActorStopped, StopRequested
-from whexar.sim.run import FALLEN_TILT_RAD, Quiet, energy_j, travelled
+from whexar.sim.run import FALLEN_TILT_RAD, Quiet, energy_j, progress, travelled
 
 if TYPE_CHECKING:
     from whexar.sim.run import Sample, SimResult
@@ -123,9 +123,9 @@ for _key, _unit, _text in (
         "net progress along the course (the heading at the start), start to end of the run",
     ),
     ("distance_m", "m", "length of the body's path over the whole run, sway included"),
-    ("mean_speed_mps", "m/s", "path length (distance_m) over the time spent walking or riding"),
+    ("mean_speed_mps", "m/s", "net progress (progress_m) over the time spent walking or riding"),
     ("energy_j", "J", "electric energy of the whole run"),
-    ("cost_of_transport", "", "E / (m g d) over the whole run"),
+    ("cost_of_transport", "", "E / (m g d) over the whole run, d the net progress"),
     ("min_stability_margin_m", "m", "least static stability margin while on the legs"),
     ("gait_changes", "", "gait changes the coordinator made"),
     ("falls", "", "times the body tilted past 60°"),
@@ -139,9 +139,21 @@ def window_s(result: SimResult, window: Window) -> Value:
     return s[-1].t - s[0].t if len(s) > 1 else 0.0
 
 
-@metric("speed_mps", "m/s", "path length over the window, over its duration")
+@metric("speed_mps", "m/s", "net progress over the window, over its duration")
 def speed_mps(result: SimResult, window: Window) -> Value:
+    return progress_speed(window.samples(result))
+
+
+@metric("path_speed_mps", "m/s", "path length over the window (sway included), over its duration")
+def path_speed_mps(result: SimResult, window: Window) -> Value:
     return path_speed(window.samples(result))
+
+
+def progress_speed(samples: Sequence[Sample]) -> float | None:
+    """Net progress over the samples' time span (m/s); ``None`` for no span."""
+    if len(samples) < 2 or samples[-1].t <= samples[0].t:
+        return None
+    return progress(samples) / (samples[-1].t - samples[0].t)
 
 
 def path_speed(samples: Sequence[Sample]) -> float | None:
@@ -295,6 +307,7 @@ __all__ = [
     "mean_supply",
     "metric",
     "path_speed",
+    "progress_speed",
     "registry",
     "servo_currents",
 ]

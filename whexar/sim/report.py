@@ -73,7 +73,8 @@ class Segment:
     """Length of the body's path over the segment, sway included."""
     energy_j: float
     cost_of_transport: float | None
-    """E / (m g d); ``None`` when it hardly moved (:data:`MIN_SEGMENT_SPEED_M_S`)."""
+    """E / (m g d), d the net progress; ``None`` when it hardly got anywhere
+    (:data:`MIN_SEGMENT_SPEED_M_S`)."""
     progress_m: float = 0.0
     """Net displacement of the body from the segment's start to its end."""
 
@@ -128,8 +129,8 @@ def segments(
         if t1 <= t0:
             continue
         distance, energy, net = _travel(samples, t0, t1)
-        travels = distance >= max(MIN_SEGMENT_DISTANCE_M, MIN_SEGMENT_SPEED_M_S * (t1 - t0))
-        cot = energy / (mass_kg * G * distance) if travels else None
+        travels = net >= max(MIN_SEGMENT_DISTANCE_M, MIN_SEGMENT_SPEED_M_S * (t1 - t0))
+        cot = energy / (mass_kg * G * net) if travels else None
         out.append(Segment(t0, t1, label, distance, energy, cot, net))
     return out
 
@@ -329,9 +330,9 @@ FIGURES: Final = {
     "progress_m": ("progress (start to end)", "m", "{:.3f}"),
     "progress_along_m": ("progress along the course", "m", "{:.3f}"),
     "distance_m": ("path length (sway included)", "m", "{:.3f}"),
-    "mean_speed_mps": ("mean speed while moving", "m/s", "{:.3f}"),
+    "mean_speed_mps": ("mean speed while moving (progress)", "m/s", "{:.3f}"),
     "energy_j": ("electric energy", "J", "{:.0f}"),
-    "cost_of_transport": ("cost of transport", "", "{:.2f}"),
+    "cost_of_transport": ("cost of transport (over the progress)", "", "{:.2f}"),
     "min_stability_margin_m": ("minimum stability margin", "m", "{:.3f}"),
     "gait_changes": ("gait changes", "", "{}"),
     "falls": ("falls", "", "{}"),

@@ -113,6 +113,10 @@ def energy_j(samples: Sequence[Sample]) -> float:
     return sum(0.5 * (a.power_w + b.power_w) * (b.t - a.t) for a, b in itertools.pairwise(samples))
 
 
+MIN_PROGRESS_M: Final = 0.01
+"""Less net progress than this over a run: no cost of transport (it went nowhere)."""
+
+
 def travelled(samples: Sequence[Sample]) -> float:
     """Length (m) of the body centre's path, sampled every :data:`TRAVEL_STEP_S`.
 
@@ -180,8 +184,9 @@ class SimResult:
 
         ``progress_m`` is the body's net displacement from start to end and
         ``progress_along_m`` its part along :attr:`heading_rad` (how far it got);
-        ``distance_m`` is the length of its path, sway included (:func:`travelled`), which
-        ``mean_speed_mps`` and ``cost_of_transport`` divide by."""
+        ``distance_m`` is the length of its path, sway included (:func:`travelled`);
+        ``mean_speed_mps`` and ``cost_of_transport`` divide by the progress, so that a robot
+        treading in place is slow and costly, not flattered by its sway."""
         if self._summary is None:
             self._summary = self._figures()
         return dict(self._summary)
@@ -189,6 +194,7 @@ class SimResult:
     def _figures(self) -> dict[str, Any]:
         s = self.samples
         distance = travelled(s)
+        net = progress(s)
         energy = energy_j(s)
         states = self.series.locomotion
         moving = [x for x in states if x.activity in ("walking", "riding", "hybrid")]
@@ -204,12 +210,14 @@ class SimResult:
             fallen = tilted
         g = 9.81
         return {
-            "progress_m": progress(s),
+            "progress_m": net,
             "progress_along_m": progress_along(s, self.heading_rad),
             "distance_m": distance,
-            "mean_speed_mps": distance / moving_s if moving_s > 0 else 0.0,
+            "mean_speed_mps": net / moving_s if moving_s > 0 else 0.0,
             "energy_j": energy,
-            "cost_of_transport": energy / (self.mass_kg * g * distance) if distance > 0 else None,
+            "cost_of_transport": energy / (self.mass_kg * g * net)
+            if net > MIN_PROGRESS_M
+            else None,
             "min_stability_margin_m": min(margins) if margins else None,
             "gait_changes": sum(1 for c in changes if c.what == "gait"),
             "falls": falls,
