@@ -145,6 +145,8 @@ def apply(spread: Spread, world: SimWorld) -> None:
         return
     m = world.model
     if spread.wheel_friction:
+        # The world grips with these, lowered while a wheel rolls (SimWorld._grip).
+        world.wheel_friction[:] = spread.wheel_friction
         for leg, mu in zip(LEG_NAMES, spread.wheel_friction, strict=True):
             m.geom_friction[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_wheel"), 0] = mu
     if spread.mass_factor:

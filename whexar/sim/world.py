@@ -86,6 +86,8 @@ from whexar.sim.power import BenchSupply, Supply, supply_amps
 from whexar.sim.terrain import GROUND_FRICTION, ROLLING_RAD_S, ROLLING_TRACTION
 from whexar.sim.tilt import BoardTilt
 
+_ROLLING_SHARE: Final = ROLLING_TRACTION / GROUND_FRICTION[0]
+"""A rolling wheel's grip as a share of its static grip (:meth:`SimWorld._grip`)."""
 _GAINS_SPAN: Final = slice(76, 86)
 """Velocity I (76), Velocity P (78) … Position P Gain (84): the gain registers (e-manual)."""
 SENSE_PERIOD_S: Final = 0.02
@@ -286,8 +288,10 @@ class SimWorld:
             mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{leg}_wheel") for leg in LEG_NAMES
         ]
         self._wheel_of = {g: leg for leg, g in enumerate(self._wheel_geoms)}
-        self._static_mu: np.ndarray | None = None
-        """Each wheel's static friction (the model's, or the spread's), once read."""
+        self._wheel_geom_index = np.array(self._wheel_geoms)
+        self.wheel_friction = model.geom_friction[self._wheel_geom_index, 0].copy()
+        """Each wheel's static friction on the ground, RF…LR (the spread of real parts sets
+        it, :mod:`whexar.sim.spread`); a rolling wheel grips with a share of it."""
         self._wheel_dofs = [
             int(
                 model.jnt_dofadr[
@@ -406,12 +410,11 @@ class SimWorld:
     def _grip(self) -> None:
         """A rolling wheel grips less than a still one (:data:`~whexar.sim.terrain.
         ROLLING_TRACTION`): each wheel's friction for the coming steps, from its speed."""
-        m, geoms = self.model, self._wheel_geoms
-        if self._static_mu is None:
-            self._static_mu = m.geom_friction[geoms, 0].copy()
         rolling = np.abs(self.data.qvel[self._wheel_dofs]) > ROLLING_RAD_S
-        scale = ROLLING_TRACTION / GROUND_FRICTION[0]
-        m.geom_friction[geoms, 0] = np.where(rolling, self._static_mu * scale, self._static_mu)
+        still = self.wheel_friction
+        self.model.geom_friction[self._wheel_geom_index, 0] = np.where(
+            rolling, still * _ROLLING_SHARE, still
+        )
 
     def _orders(self) -> None:
         """Every servo's orders as arrays, read again only where a write made a new drive."""

@@ -185,7 +185,7 @@ class PlannerCore:
             return foot
         frame = self.frames[leg]
         if frame.pose != self.pose_now:
-            frame.set_pose(tuple(self.pose_now))
+            frame.set_pose(self.pose_now)
         return frame.from_leg(trochanter_arc(frame.to_leg(foot), theta))
 
     def margin(self, down: list[int]) -> float:

@@ -143,7 +143,9 @@ class Scripts(PlannerCore):
         yield self.after(self.loco.flip_s + SETTLE_S)
         self.neutral_points = self.neutral(self.stance(self.stance_name))
         self.feet = [None if f is None else (f[0], -f[1], f[2]) for f in self.feet]
-        self.measured_feet = [None] * N_LEGS  # until the legs say where they are now
+        # Until the legs say where they are now.
+        self.measured_feet = [None] * N_LEGS
+        self.measured_raw = [None] * N_LEGS
         self.changed("upside_down", str(before), str(self.upside_down))
         stance = self.stance(self.stance_name)
         self.height = stance.height
