@@ -71,6 +71,29 @@ def step(
     )
 
 
+def body_motion(
+    t: float,
+    *,
+    trochanter_rad: float = 0.0,
+    steer: bool = False,
+    heading_rad: float = 0.0,
+    speed_m_s: float = 0.0,
+) -> BodyMotion:
+    """The coordinator's body motion at ``t``: the body still, in its neutral pose."""
+    return BodyMotion(
+        t=t,
+        source="coordinator",
+        cycle=round(t / DT),
+        twist=(0.0, 0.0, 0.0),
+        pose=(0.0,) * 6,
+        trochanter_rad=trochanter_rad,
+        upside_down=False,
+        steer=steer,
+        wheel_heading_rad=(heading_rad,) * 6,
+        wheel_speed_m_s=(speed_m_s,) * 6,
+    )
+
+
 def goals_of(out: list[Message]) -> list[JointGoals]:
     return [m for m in out if isinstance(m, JointGoals)]
 
@@ -298,18 +321,7 @@ def test_an_unreachable_foot_holds_the_last_good_pose_and_says_so_once() -> None
 
 def test_the_wheel_steers_to_the_heading_less_the_coxa_and_stops_in_the_air() -> None:
     leg, angles = placed("none")
-    motion = BodyMotion(
-        t=2.0,
-        source="coordinator",
-        cycle=100,
-        twist=(0.0, 0.0, 0.0),
-        pose=(0.0,) * 6,
-        trochanter_rad=0.0,
-        upside_down=False,
-        steer=True,
-        wheel_heading_rad=(0.3,) * 6,
-        wheel_speed_m_s=(0.1,) * 6,
-    )
+    motion = body_motion(2.0, steer=True, heading_rad=0.3, speed_m_s=0.1)
     out = leg.cycle(2.0, states(2.0, angles), motion=motion)
     (said,) = goals_of(out)
     by_joint = {g.joint: g for g in said.goals}
@@ -323,18 +335,7 @@ def test_the_trochanter_carries_the_foot_on_its_arc() -> None:
     # thesis's leg puts it, back and up by the arc (kinematics.leg.trochanter_arc).
     leg, angles = placed()
     theta = math.radians(-32.0)
-    motion = BodyMotion(
-        t=1.1,
-        source="coordinator",
-        cycle=55,
-        twist=(0.0, 0.0, 0.0),
-        pose=(0.0,) * 6,
-        trochanter_rad=theta,
-        upside_down=False,
-        steer=False,
-        wheel_heading_rad=(0.0,) * 6,
-        wheel_speed_m_s=(0.0,) * 6,
-    )
+    motion = body_motion(1.1, trochanter_rad=theta)
     leg.cycle(1.1, states(1.1, angles, femur_a=LOADED_A), motion=motion)
     assert leg.angles is not None
     assert leg.angles[1] == pytest.approx(theta)
