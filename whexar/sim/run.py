@@ -335,21 +335,15 @@ def simulate(
     samples: list[Sample] = []
     series = RunSeries(quiet=Quiet)
 
-    @dataclass
-    class _Drawn:
-        charge_c: float = 0.0
-        t: float = 0.0
-
-    drawn_so_far = _Drawn()
+    last_draw = [0.0, 0.0]  # the supply's charge drawn (C) and the time, at the last sample
 
     def sample() -> None:
         roll, pitch, yaw = quat_rpy(*world.base_quat)
         x, y, z = world.base_position
         # The supply current since the sample before (none before the first: the latest).
-        seen = drawn_so_far
-        drawn, span = world.supply.drawn_c, world.time - seen.t
-        supply_a = (drawn - seen.charge_c) / span if span > 0 else world.supply_a
-        seen.charge_c, seen.t = drawn, world.time
+        drawn, span = world.supply.drawn_c, world.time - last_draw[1]
+        supply_a = (drawn - last_draw[0]) / span if span > 0 else world.supply_a
+        last_draw[:] = drawn, world.time
         s = Sample(
             world.time,
             x,
