@@ -300,3 +300,15 @@ def test_the_command_line_refuses_options_of_a_single_run(
     assert main(["sim", "--experiments", "--duration", "3", "--seed", "1"]) == 2
     err = capsys.readouterr().err
     assert "--experiments runs its own campaign: drop --duration, --seed" in err
+
+
+def test_the_tilting_board_judges_by_the_reference_rules() -> None:
+    # tilt_limit_deg decides in the run what the figures' rules decide from the rows: the
+    # two must not drift apart (the metric cannot read the reference: it defines run keys).
+    from whexar.campaign.experiments import metrics as m
+    from whexar.campaign.experiments.reference import reference
+
+    rules = reference().rules
+    assert rules.max_slide_m == m.TILT_SLIDE_M
+    assert rules.min_progress_fraction == m.TILT_PROGRESS_FRACTION
+    assert rules.max_heading_change_deg == m.TILT_TURN_DEG
