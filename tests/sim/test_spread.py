@@ -118,3 +118,29 @@ def test_the_sensors_read_through_their_parts() -> None:
         assert low <= counts <= high
     offset = [a - b for a, b in zip(chip.accel_g, world.accel_g, strict=True)]
     assert offset == pytest.approx(list(drawn.accel_offset_g))
+
+
+def test_the_chip_carries_the_levels_its_configuration_takes_off() -> None:
+    # The simulated LSM9DS1 is the one the configuration was calibrated for: it reads the
+    # configured zero-g and zero-rate levels on top, the spread's residual on top of that.
+    from whexar.config import parse_config
+    from whexar.sensors.imu_emulator import FakeLsm9ds1
+    from whexar.sim.run import seated_angles
+
+    cfg = parse_config(
+        {"imu": {"accel_offset_g": [0.05, -0.02, 0.01], "gyro_offset_dps": [12.0, 0.0, -4.0]}}
+    )
+    chain = ServoChain.for_models(cfg.servos(), baudrate=cfg.bus.baudrate)
+    chip = FakeLsm9ds1()
+    world = SimWorld(load_model(cfg), chain, cfg=cfg, imu=chip)
+    seat = cfg.locomotion.sit_height_mm / 1000 - 0.001
+    world.set_pose(seated_angles(cfg), base_xyz=(0.0, 0.0, seat))
+    offset = [a - b for a, b in zip(chip.accel_g, world.accel_g, strict=True)]
+    assert offset == pytest.approx([0.05, -0.02, 0.01])
+    assert chip.gyro_dps == pytest.approx((12.0, 0.0, -4.0), abs=1e-6)  # at rest
+    drawn = sp.Spread.draw(2, world.model, len(world.joints))
+    sp.apply(drawn, world)
+    world.set_pose(seated_angles(cfg), base_xyz=(0.0, 0.0, seat))
+    offset = [a - b for a, b in zip(chip.accel_g, world.accel_g, strict=True)]
+    residual = [o - c for o, c in zip(offset, (0.05, -0.02, 0.01), strict=True)]
+    assert residual == pytest.approx(list(drawn.accel_offset_g))

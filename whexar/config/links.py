@@ -221,6 +221,14 @@ class FSRSpec(Section):
         return []
 
 
+AccelOffset = Annotated[float, Field(ge=-0.25, le=0.25, allow_inf_nan=False)]
+"""A calibrated zero-g level, g: beyond ±0.25 g (almost 3× the datasheet's typical
+offset) the chip or its calibration is broken."""
+GyroOffset = Annotated[float, Field(ge=-100.0, le=100.0, allow_inf_nan=False)]
+"""A calibrated zero-rate level, dps: beyond ±100 dps (over 3× the datasheet's typical
+level) the chip or its calibration is broken."""
+
+
 class ImuSpec(Section):
     """The LSM9DS1 IMU on the Raspberry Pi's I²C bus (5.3.4, 5.4)."""
 
@@ -239,6 +247,14 @@ class ImuSpec(Section):
     """The IMU link is stale when no sample was read for this long."""
     gravity_tolerance_g: GravityTolerance = GRAVITY_TOLERANCE_G
     """A sample whose acceleration is further than this from 1 g gives no tilt."""
+    accel_offset_g: tuple[AccelOffset, AccelOffset, AccelOffset] = (0.0, 0.0, 0.0)
+    """This chip's zero-g level per axis, in its own axes, subtracted from every
+    sample: what X and Y read with the robot still on level ground, and Z less 1 g.
+    Uncalibrated, an LSM9DS1 reads up to ±90 mg (datasheet Table 3, typical zero-g
+    level offset accuracy), a tilt of up to 5°."""
+    gyro_offset_dps: tuple[GyroOffset, GyroOffset, GyroOffset] = (0.0, 0.0, 0.0)
+    """This chip's zero-rate level per axis, subtracted from every sample: the mean
+    rate read at rest (datasheet Table 3: typically ±30 dps uncalibrated)."""
 
     def problems(self, at: str) -> list[Problem]:
         # One late sample must not read as a stale link (whexar.actors.sensing.imu).

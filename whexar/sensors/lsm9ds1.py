@@ -344,6 +344,26 @@ class Reading:
         return bool(self.status & (XLDA | GDA))
 
 
+@dataclass(frozen=True, slots=True)
+class Calibration:
+    """A chip's zero-g and zero-rate levels (``imu.accel_offset_g``, ``imu.gyro_offset_dps``),
+    taken off its readings: an uncalibrated LSM9DS1 is typically off by ±90 mg and ±30 dps
+    per axis (Table 3, "typical zero-g level offset accuracy", "zero-rate level")."""
+
+    accel_offset_g: Vector = (0.0, 0.0, 0.0)
+    gyro_offset_dps: Vector = (0.0, 0.0, 0.0)
+
+    def apply(self, reading: Reading) -> Reading:
+        """``reading`` less the offsets (the status bits as read)."""
+        a, g = reading.accel_g, reading.gyro_dps
+        oa, og = self.accel_offset_g, self.gyro_offset_dps
+        return Reading(
+            accel_g=(a[0] - oa[0], a[1] - oa[1], a[2] - oa[2]),
+            gyro_dps=(g[0] - og[0], g[1] - og[1], g[2] - og[2]),
+            status=reading.status,
+        )
+
+
 # --------------------------------------------------------------------------- the driver
 
 
@@ -480,6 +500,7 @@ __all__ = [
     "WHO_AM_I",
     "WHO_AM_I_VALUE",
     "XLDA",
+    "Calibration",
     "I2CBus",
     "Lsm9ds1",
     "Reading",

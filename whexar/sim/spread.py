@@ -9,7 +9,8 @@ each within the amplitude its datasheet gives (the constants below; docs/sim.md,
 "Spread of real parts", sets them side by side with their sources):
 
 * the sensors: each force sensor's gain and the scatter of its readings, each
-  rangefinder's gain, the IMU's zero-g and zero-rate offsets;
+  rangefinder's gain, the IMU's zero-g level as its calibration leaves it and its
+  zero-rate level;
 * the ground: each wheel's sliding friction;
 * the masses: every link of the robot heavier or lighter, the body's centre of mass
   moved;
@@ -51,13 +52,16 @@ single part")."""
 IR_GAIN: Final = 0.25 / 1.9
 """Rangefinder gain, part to part: the output swing from 80 cm to 10 cm is 1.65–2.15 V,
 typically 1.9 V (Sharp GP2Y0A21YK data sheet, "difference of output voltage")."""
-ACCEL_OFFSET_G: Final = 0.090
-"""Accelerometer zero-g offset per axis: ±90 mg (LSM9DS1 data sheet DocID025715,
-Table 3, "linear acceleration typical zero-g level offset accuracy"). ST defines the
-typical offset as a population's standard deviation: uniform within ± it is narrower."""
+ACCEL_OFFSET_G: Final = math.sin(math.radians(0.26))
+"""Accelerometer zero-g level per axis left by the robot's calibration
+(``imu.accel_offset_g``): ±4.5 mg, the sine of the largest tilt error the thesis
+measured on its calibrated IMU between −80° and +80° (Žák 2023, Table 6.4: 0.26° at
+30°). Uncalibrated, the part is off by up to ±90 mg (LSM9DS1 data sheet DocID025715,
+Table 3), a false tilt of 5° that the trochanters would follow."""
 GYRO_OFFSET_DPS: Final = 30.0
 """Gyroscope zero-rate level per axis: ±30 dps (LSM9DS1 data sheet, Table 3, "angular
-rate typical zero-rate level")."""
+rate typical zero-rate level"), uncalibrated: the thesis reads only the accelerometer
+(5.4), and nothing in whexar's control reads the rate yet."""
 FRICTION_RANGE: Final = (0.8 / 0.9, 1.0 / 0.9)
 """A wheel's sliding friction on the ground, as a factor on the nominal
 (:data:`~whexar.sim.terrain.GROUND_FRICTION`, 1.3, which standing on the thesis's 50°
@@ -180,8 +184,9 @@ def _read(spread: Spread, world: SimWorld, rng: np.random.Generator) -> None:
         for c, g in zip(world.ir_counts, spread.ir_gain, strict=True)
     ]
     if world.imu is not None:
-        # The LSM9DS1's own offsets: the board's analog accelerometer is another part.
-        ax, ay, az = world.accel_g
+        # What the chip's calibration leaves, on top of what the configuration took off
+        # (SimWorld); the board's analog accelerometer is another part.
+        ax, ay, az = world.imu.accel_g
         ox, oy, oz = spread.accel_offset_g
         world.imu.accel_g = (ax + ox, ay + oy, az + oz)
         wx, wy, wz = world.imu.gyro_dps

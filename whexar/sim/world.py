@@ -200,6 +200,7 @@ class SimWorld:
         self.chain = chain
         self.board = board
         self.imu = imu
+        self._imu_levels = (self.cfg.imu.accel_offset_g, self.cfg.imu.gyro_offset_dps)
         self.h = float(model.opt.timestep)
         self.steps = 0
         self.time = 0.0
@@ -596,8 +597,12 @@ class SimWorld:
             # Mounted with its x axis to the body's left, y to the rear (module docstring).
             self.accel_g = (fy, -fx, fz)
             if self.imu is not None:
-                self.imu.accel_g = self.accel_g
-                self.imu.gyro_dps = (wy, -wx, wz)
+                # The chip the configuration was calibrated for: it reads its own zero-g
+                # and zero-rate levels on top, which the reader takes off again.
+                (ox, oy, oz), (gx, gy, gz) = self._imu_levels
+                ax, ay, az = self.accel_g
+                self.imu.accel_g = (ax + ox, ay + oy, az + oz)
+                self.imu.gyro_dps = (wy + gx, -wx + gy, wz + gz)
         if self.sense_hook is not None:
             self.sense_hook(self)
 

@@ -26,7 +26,8 @@ from whexar.actors.messages import (
     SensorLinkUp,
 )
 from whexar.actors.sensing.imu import ImuReader, open_bus
-from whexar.errors import DeviceError, DeviceGoneError, UsageError
+from whexar.config import load_config
+from whexar.errors import ConfigError, DeviceError, DeviceGoneError, UsageError
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.messages import ActorFailed, Event, TickOverrun
 from whexar.runtime.wiring import WiringError
@@ -546,6 +547,41 @@ def test_tilt_needs_a_reading_near_1_g(chip: FakeLsm9ds1, tmp_path: Path) -> Non
     assert not tight.messages("tilt")
     (refused,) = tight.events(AccelImplausible)
     assert refused.tolerance_g == 0.1
+
+
+def test_calibration_takes_the_chips_levels_off_every_sample(
+    chip: FakeLsm9ds1, tmp_path: Path
+) -> None:
+    # A chip 90 mg off in X (the datasheet's typical zero-g offset, a 5° false roll) and
+    # 40 mg in Y, with a 25 dps zero-rate level, on level ground, at rest.
+    chip.accel_g = (0.090, -0.040, 1.010)
+    chip.gyro_dps = (25.0, -3.0, 1.0)
+    raw = run(duration=0.2)
+    tilt = raw.messages("tilt", of=BodyTilt)[-1]
+    assert math.degrees(tilt.roll_rad) == pytest.approx(5.09, abs=0.02)  # uncalibrated
+    config = tmp_path / "robot.toml"
+    config.write_text(
+        "[imu]\naccel_offset_g = [0.090, -0.040, 0.010]\ngyro_offset_dps = [25.0, -3.0, 1.0]\n"
+    )
+    calibrated = run(duration=0.2, params={"config": str(config)})
+    tilt = calibrated.messages("tilt", of=BodyTilt)[-1]
+    assert tilt.roll_rad == pytest.approx(0.0, abs=1e-3)
+    assert tilt.pitch_rad == pytest.approx(0.0, abs=1e-3)
+    sample = calibrated.messages("samples", of=ImuSample)[-1]
+    assert sample.accel_g == pytest.approx((0.0, 0.0, 1.0), abs=1e-3)  # 0.061 mg/LSB
+    assert sample.gyro_dps == pytest.approx((0.0, 0.0, 0.0), abs=0.01)  # 8.75 mdps/LSB
+    assert tilt.accel_g == sample.accel_g
+
+
+def test_calibration_beyond_what_a_chip_can_be_off_is_refused(tmp_path: Path) -> None:
+    config = tmp_path / "robot.toml"
+    config.write_text("[imu]\naccel_offset_g = [0.0, 0.3, 0.0]\n")
+    with pytest.raises(ConfigError) as err:
+        load_config(config)
+    text = str(err.value)
+    assert "imu.accel_offset_g" in text
+    assert "0.3" in text
+    assert "0.25" in text
 
 
 def test_unknown_fake_and_too_short_stale_window_are_refused(

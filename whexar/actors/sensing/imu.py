@@ -19,6 +19,9 @@ link (one device, one owner) and does it on the runtime's clock:
    transactions (≈0.3–0.5 ms at 400 kHz), so it runs in a worker thread
    (``anyio.to_thread``). A fake (``device = "fake…"``) is called inline:
    work in a thread is invisible to the virtual-time loop.
+4. **Calibration**: every sample is published less this chip's zero-g and
+   zero-rate levels (``imu.accel_offset_g``, ``imu.gyro_offset_dps``: what it
+   reads at rest on level ground), before the gravity check and the tilt.
 
 Failures never end the actor, except a wrong device at start:
 
@@ -76,6 +79,7 @@ from whexar.sensors.gravity import GravityCheck
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
 from whexar.sensors.lsm9ds1 import (
     ODR_HZ,
+    Calibration,
     I2CBus,
     Lsm9ds1,
     Reading,
@@ -149,6 +153,7 @@ class ImuReader(Actor):
         )
         self.period_s = 1.0 / self.wanted.rate_hz
         self.gravity = GravityCheck(spec.gravity_tolerance_g)
+        self.calibration = Calibration(spec.accel_offset_g, spec.gyro_offset_dps)
         self.stale_after_s = spec.stale_after_s
         if self.stale_after_s < STALE_MIN_PERIODS * self.period_s:
             raise UsageError(
@@ -284,6 +289,7 @@ class ImuReader(Actor):
 
     async def _publish(self, reading: Reading) -> None:
         t = self.now()
+        reading = self.calibration.apply(reading)
         if self.stale:
             self.stale = False
             self.emit(
