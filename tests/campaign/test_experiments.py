@@ -82,8 +82,8 @@ def test_the_campaign_loads_and_names_only_known_metrics() -> None:
             if r.label == label
         }
         assert {(s, t) for s in (0, 14, 23, 32, 40, 50) for t in (False, True)} <= cells
-    # The budget: the whole campaign within ~2500 simulated seconds (10 min on 2 cores).
-    assert sum(r.scenario["duration_s"] for r in campaign.runs) <= 2500
+    # The budget: 2774 simulated seconds ran in 5 min on 2 cores; the issue allows 10.
+    assert sum(r.scenario["duration_s"] for r in campaign.runs) <= 3000
 
 
 # --------------------------------------------------------------------------- figures from rows
