@@ -420,6 +420,57 @@ class AccelPlausible(Event):
     withheld: int
 
 
+# --------------------------------------------------------------------------- command sources
+# The gamepad's link (whexar.actors.commands): ``link`` is its device, a path
+# (/dev/input/event0) or an in-process pad (pipe:NAME).
+
+
+@message
+class GamepadLinkUp(Event):
+    """The gamepad on ``link`` is open; ``name`` is what it calls itself (EVIOCGNAME), empty
+    when it cannot say (a pipe)."""
+
+    link: str
+    name: str
+
+
+@message
+class GamepadLinkDown(Event):
+    """The gamepad on ``link`` is not there or went away (``reason``); the robot was told to
+    stop if it moved, and the source looks for the pad again every ``reopen_period_s``."""
+
+    link: str
+    reason: str
+
+
+@message
+class GamepadLinkSilent(Event):
+    """The gamepad on ``link`` said nothing for ``silent_s`` while its dead-man was held and it
+    asked for motion: the robot was told to stop."""
+
+    link: str
+    silent_s: float
+
+
+@message
+class GamepadLinkHeard(Event):
+    """The gamepad on ``link`` reports again after ``silent_s`` of silence."""
+
+    link: str
+    silent_s: float
+
+
+@message
+class GamepadEventsDropped(Event):
+    """The kernel dropped events of the gamepad on ``link`` (SYN_DROPPED; ``discarded`` more
+    were thrown away after it). ``resynced``: its state was read back from the device;
+    else it was forgotten and the dead-man must be pressed again."""
+
+    link: str
+    discarded: int
+    resynced: bool
+
+
 # --------------------------------------------------------------------------- locomotion
 # The coordinator and the six leg actors (whexar.actors.locomotion).
 # Points are in the body frame (x forward, y left, z up; metres) unless a name says

@@ -8,9 +8,10 @@ The wiring file can be changed for one run without editing it:
 graph is built and checked (VALUE is read as a TOML value — ``3``, ``true``,
 ``"x"`` — or else taken as a plain string). ``--commands FILE`` and
 ``--keyboard`` are short for ``--set commands.source=FILE`` and
-``--set commands.source=keyboard``: the graph's actor named ``commands`` (a
-:class:`~whexar.actors.commands.CommandSource`) then plays a command script or
-reads the keyboard. While the keyboard's status line is on the terminal, each
+``--set commands.source=keyboard``, ``--gamepad [DEVICE]`` for
+``--set commands.source=gamepad[:DEVICE]``: the graph's actor named ``commands`` (a
+:class:`~whexar.actors.commands.CommandSource`) then plays a command script,
+reads the keyboard or a gamepad. While the keyboard's status line is on the terminal, each
 event line first clears it; the actor redraws it at its next update.
 """
 
@@ -45,7 +46,7 @@ if TYPE_CHECKING:
     from whexar.runtime.wiring import Graph
 
 COMMANDS_ACTOR = "commands"
-"""The actor ``--commands`` and ``--keyboard`` set the ``source`` of."""
+"""The actor ``--commands``, ``--keyboard`` and ``--gamepad`` set the ``source`` of."""
 
 _BELOW = " " * 12
 """Indent of what follows an event line (a traceback), under the event's name."""
@@ -107,6 +108,9 @@ def _overrides(args: argparse.Namespace) -> list[tuple[str, object, str]]:
         found.append((f"{COMMANDS_ACTOR}.source", str(path), "--commands"))
     if args.keyboard:
         found.append((f"{COMMANDS_ACTOR}.source", "keyboard", "--keyboard"))
+    if args.gamepad is not None:
+        pad = f"gamepad:{args.gamepad}" if args.gamepad else "gamepad"
+        found.append((f"{COMMANDS_ACTOR}.source", pad, "--gamepad"))
     return found
 
 
@@ -129,14 +133,28 @@ def load_run_graph(args: argparse.Namespace) -> Graph:
         )
     if args.keyboard and not _stdin_is_a_terminal():
         raise UsageError("--keyboard needs a terminal on stdin; pipe commands with stdin instead")
+    if args.gamepad is not None and args.virtual:
+        raise UsageError(
+            "--gamepad reads a person's gamepad in real time; it cannot run with --virtual "
+            "(give --commands FILE for a run on virtual time)"
+        )
     overrides = _overrides(args)
     if not overrides:
         return load_graph(args.graph)
     source = str(args.graph)
     data = read_toml(args.graph)
     names = actor_names(data)
-    if (args.commands is not None or args.keyboard) and COMMANDS_ACTOR not in names:
-        option = "--keyboard" if args.keyboard else "--commands"
+    chosen = [
+        option
+        for option, given in (
+            ("--commands", args.commands is not None),
+            ("--keyboard", args.keyboard),
+            ("--gamepad", args.gamepad is not None),
+        )
+        if given
+    ]
+    if chosen and COMMANDS_ACTOR not in names:
+        option = chosen[0]
         raise ConfigError(
             source,
             [
@@ -313,6 +331,16 @@ def add_commands(commands: Commands) -> None:
         action="store_true",
         help="drive from the keyboard (arrows/WASD, space stops, x quits; real time only): "
         f"--set {COMMANDS_ACTOR}.source=keyboard",
+    )
+    source.add_argument(
+        "--gamepad",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="DEVICE",
+        help="drive with a gamepad (/dev/input/eventN; without DEVICE the [gamepad] "
+        "section's; hold the dead-man, LB/L1, to drive; real time only): "
+        f"--set {COMMANDS_ACTOR}.source=gamepad:DEVICE",
     )
     recording = run_cmd.add_mutually_exclusive_group()
     recording.add_argument(

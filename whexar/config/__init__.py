@@ -28,8 +28,9 @@ document in two layers, so that one bad key never hides another:
 
 The sections, by module: :mod:`~.parts` (body, servo models, joints, DH, legs),
 :mod:`~.links` (bus, sensor board, IR, FSR, IMU), :mod:`~.motion` (gait selector,
-stances, locomotion), :mod:`~.loading` (the whole robot, its cross-checks, loading and
-the schema); :mod:`~.common` what they share. Import every name from here.
+stances, locomotion), :mod:`~.gamepad` (the gamepad's mapping), :mod:`~.loading` (the
+whole robot, its cross-checks, loading and the schema); :mod:`~.common` what they share.
+Import every name from here.
 
 May import: the device links (:mod:`whexar.bus`, :mod:`whexar.sensors`),
 :mod:`whexar.kinematics`, :mod:`whexar.robot`, :mod:`whexar.errors` and
@@ -37,6 +38,7 @@ May import: the device links (:mod:`whexar.bus`, :mod:`whexar.sensors`),
 """
 
 from whexar.config.common import DH_SEGMENT_TOLERANCE_MM, AdcCounts, ServoModelName
+from whexar.config.gamepad import GamepadSpec, StickSpec
 from whexar.config.links import (
     AccelerometerSpec,
     BoardBaudrate,
@@ -90,6 +92,7 @@ __all__ = [
     "FSRSpec",
     "GaitSelectorSpec",
     "GaitThresholds",
+    "GamepadSpec",
     "GravityTolerance",
     "IRSpec",
     "ImuSpec",
@@ -103,6 +106,7 @@ __all__ = [
     "ServoModelName",
     "ServoModelSpec",
     "StanceSpec",
+    "StickSpec",
     "Trajectory",
     "board_baudrate",
     "config_schema",

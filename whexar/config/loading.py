@@ -20,6 +20,7 @@ from pydantic import (
 )
 
 from whexar.config.common import DH_SEGMENT_TOLERANCE_MM, ServoModelName
+from whexar.config.gamepad import GamepadSpec, stance_problems
 from whexar.config.links import BusSpec, FSRSpec, ImuSpec, IRSpec, SensorBoardSpec
 from whexar.config.motion import GaitSelectorSpec, LocomotionSpec, StanceSpec, default_stances
 from whexar.config.parts import (
@@ -68,6 +69,7 @@ class RobotConfig(CheckedSection):
     gait_selector: GaitSelectorSpec = GaitSelectorSpec()
     stances: dict[str, StanceSpec] = Field(default_factory=default_stances)
     locomotion: LocomotionSpec = LocomotionSpec()
+    gamepad: GamepadSpec = GamepadSpec()
 
     def problems(self, at: str = "") -> list[Problem]:
         """Every relational problem of the whole configuration."""
@@ -200,8 +202,13 @@ def _check_locomotion_stances(cfg: RobotConfig) -> list[Problem]:
     return found
 
 
+def _check_gamepad_stances(cfg: RobotConfig) -> list[Problem]:
+    return stance_problems(cfg.gamepad, cfg.stances)
+
+
 _CROSS_CHECKS: Final[tuple[Callable[[RobotConfig], list[Problem]], ...]] = (
     _check_locomotion_stances,
+    _check_gamepad_stances,
     _check_dh_lengths,
     _check_servo_models,
     _check_stances,

@@ -1,4 +1,4 @@
-"""Where motion commands come from: a script, stdin, or a person at the keyboard.
+"""Where motion commands come from: a script, stdin, or a person at the keyboard or a gamepad.
 
 Theory of operation
 -------------------
@@ -40,6 +40,24 @@ port, for the coordinator. Its ``source`` parameter chooses the front end:
   are restored however the actor ends, and by its :meth:`~CommandSource.safe_stop`
   too, which a second Ctrl-C runs before the process exits without cleanup.
   Keys are read through the event loop (a watched descriptor), not a thread.
+* ``gamepad`` or ``gamepad:DEVICE`` — a person drives with a Linux gamepad
+  (``/dev/input/eventN``; without DEVICE the ``[gamepad]`` section's
+  ``device``). The sticks give forward, sideways and turn speeds, buttons the
+  gait, mode, stance, a flip and a stop, as the ``[gamepad]`` section of the
+  robot configuration maps them (the ``config`` parameter; :mod:`.gamepad` has
+  the policy: dead zone, steps, the dead-man). The pad drives only while its
+  dead-man button is held. The device's records (:mod:`whexar.sensors.evdev`)
+  are read through the event loop from a non-blocking descriptor
+  (:mod:`whexar.sensors.evdev_link`), each report applied whole. A pad that is
+  not there, or goes away (ENODEV, end of file), is
+  :class:`~whexar.actors.messages.GamepadLinkDown` — and a stop if the robot
+  moved — and is looked for again every ``reopen_period_s``
+  (:class:`~whexar.actors.messages.GamepadLinkUp`); a pad silent for
+  ``silent_after_s`` while it drives is a stop and
+  :class:`~whexar.actors.messages.GamepadLinkSilent`; events the kernel dropped
+  are :class:`~whexar.actors.messages.GamepadEventsDropped`. ``pipe:NAME`` as
+  the device reads an in-process :class:`~whexar.sensors.evdev_link.EventPipe`
+  instead (tests). Real time only, unless the graph allows real I/O.
 * ``none`` — nothing is sent (a graph driven by a scenario).
 
 Every front end makes the same typed command, so the coordinator has one
@@ -47,16 +65,19 @@ path for all of them. The actor (:mod:`.source`) only chooses the front end
 and sends what it makes: the script parser (:mod:`.script`: :func:`load_script`,
 :func:`parse_command`), the keyboard's keys and status line (:mod:`.keyboard`:
 :func:`key_command`, :func:`split_keys`, :func:`status_line`) are pure
-functions, tested without a terminal or a loop; the terminal and stdin are
-:mod:`.terminal`'s.
+functions, and the gamepad's mapping is a plain class (:mod:`.gamepad`:
+:class:`GamepadPolicy`, :class:`GamepadMapping`), all tested without a
+terminal, a device or a loop; the terminal and stdin are :mod:`.terminal`'s.
 
 May import: :mod:`whexar.actors.messages`, :mod:`whexar.config` and the layers below;
 never another actor subsystem.
 """
 
+from whexar.actors.commands.gamepad import AxisRange, GamepadMapping, GamepadPolicy
 from whexar.actors.commands.keyboard import KeyboardState, key_command, split_keys, status_line
 from whexar.actors.commands.script import (
     GAITS,
+    GAMEPAD_PREFIX,
     KEYWORDS,
     MODES,
     MOTION_FIELDS,
@@ -69,11 +90,15 @@ from whexar.actors.commands.terminal import LineReader
 
 __all__ = [
     "GAITS",
+    "GAMEPAD_PREFIX",
     "KEYWORDS",
     "MODES",
     "MOTION_FIELDS",
     "STDIN_ON_VIRTUAL_TIME",
+    "AxisRange",
     "CommandSource",
+    "GamepadMapping",
+    "GamepadPolicy",
     "KeyboardState",
     "LineReader",
     "key_command",

@@ -28,8 +28,11 @@ from whexar.errors import MISSING, ConfigError, Problem
 from whexar.kinematics.gait import GAIT_RANKING
 from whexar.runtime.schema import read_text
 
-KEYWORDS: Final = ("stdin", "keyboard", "none")
-"""The values of ``source`` that are no file."""
+KEYWORDS: Final = ("stdin", "keyboard", "gamepad", "none")
+"""The values of ``source`` that are no file (and ``gamepad:DEVICE``, :data:`GAMEPAD_PREFIX`)."""
+
+GAMEPAD_PREFIX: Final = "gamepad:"
+"""``source = "gamepad:DEVICE"``: the gamepad on DEVICE (a path, or ``pipe:NAME``)."""
 
 GAITS: Final = GAIT_RANKING[1:]
 """The walking gaits a command may choose (rank 0, riding on wheels, is a mode)."""
@@ -251,17 +254,20 @@ def load_script(path: str | Path, *, source: str = "commands") -> tuple[MotionCo
 
 
 def _check_source(value: str) -> str:
-    """Check a ``source`` parameter: a keyword, or a script without problems."""
-    if value in KEYWORDS:
+    """Check a ``source`` parameter: a keyword, a gamepad, or a script without problems."""
+    if value in KEYWORDS or (value.startswith(GAMEPAD_PREFIX) and value != GAMEPAD_PREFIX):
         return value
     try:
         load_script(value)
     except ConfigError as exc:
         found = "; ".join(str(p) for p in exc.problems)
         words = ", ".join(repr(k) for k in KEYWORDS)
-        raise ValueError(f"{words} or a command script without problems; {found}") from None
+        raise ValueError(
+            f"{words}, '{GAMEPAD_PREFIX}DEVICE' or a command script without problems; {found}"
+        ) from None
     return value
 
 
 SourceName = Annotated[str, AfterValidator(_check_source)]
-"""A ``source`` parameter: ``stdin``, ``keyboard``, ``none`` or a command script file."""
+"""A ``source`` parameter: ``stdin``, ``keyboard``, ``gamepad[:DEVICE]``, ``none`` or a command
+script file."""

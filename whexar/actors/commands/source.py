@@ -1,9 +1,11 @@
-"""The command source actor: motion commands from a script, stdin or the keyboard.
+"""The command source actor: motion commands from a script, stdin, the keyboard or a gamepad.
 
 The front ends are told in :mod:`whexar.actors.commands`; the script
 parser is :mod:`.script`, the keyboard's keys and status line
-:mod:`.keyboard`, the terminal and stdin :mod:`.terminal`. This actor only
-chooses the front end, waits on it and sends what it makes.
+:mod:`.keyboard`, the terminal and stdin :mod:`.terminal`, the gamepad's
+mapping :mod:`.gamepad` (its device :mod:`whexar.sensors.evdev_link`, its
+records :mod:`whexar.sensors.evdev`). This actor only chooses the front end,
+waits on it and sends what it makes.
 """
 
 from __future__ import annotations
@@ -11,10 +13,12 @@ from __future__ import annotations
 import codecs
 import math
 import os
+from collections.abc import Callable
 from typing import Final
 
 import anyio
 
+from whexar.actors.commands.gamepad import AxisRange, GamepadMapping, GamepadPolicy
 from whexar.actors.commands.keyboard import (
     HELP,
     STATUS_PERIOD_S,
@@ -22,23 +26,52 @@ from whexar.actors.commands.keyboard import (
     key_command,
     split_keys,
 )
-from whexar.actors.commands.script import SourceName, load_script, parse_command, shown
+from whexar.actors.commands.script import (
+    GAMEPAD_PREFIX,
+    SourceName,
+    load_script,
+    parse_command,
+    shown,
+)
 from whexar.actors.commands.terminal import LineReader, Terminal, stdin_fd, write
-from whexar.actors.messages import CommandRefused, LocomotionState, MotionCommand
-from whexar.errors import ConfigError, UsageError
+from whexar.actors.messages import (
+    CommandRefused,
+    GamepadEventsDropped,
+    GamepadLinkDown,
+    GamepadLinkHeard,
+    GamepadLinkSilent,
+    GamepadLinkUp,
+    LocomotionState,
+    MotionCommand,
+)
+from whexar.config import ConfigFile, GamepadSpec, RobotConfig, load_config
+from whexar.errors import ConfigError, DeviceGoneError, UsageError
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
+from whexar.runtime.devices import DEVICES
 from whexar.runtime.schema import Positive
+from whexar.sensors.evdev import Dropped, EventDecoder
+from whexar.sensors.evdev_link import EVENT_PIPE, EventDevice
 
 STDIN_ON_VIRTUAL_TIME: Final = "stdin is not read on virtual time; give --commands FILE"
 """The reason of the one ``CommandRefused`` a stdin source gives on virtual time."""
 
+PAD_READ_RECORDS: Final = 64
+"""Records read from the gamepad at most per read (a report is a few)."""
+
 
 class CommandSource(Actor):
-    """Sends motion commands from a script, stdin or the keyboard (see the module docstring)."""
+    """Sends motion commands from a script, stdin, the keyboard or a gamepad (see the module
+    docstring)."""
 
     class Params(ActorParams):
         source: SourceName = "stdin"
-        """``stdin``, ``keyboard``, ``none``, or the path of a command script (JSON lines)."""
+        """``stdin``, ``keyboard``, ``gamepad`` (the device of ``[gamepad]``),
+        ``gamepad:DEVICE`` (``/dev/input/eventN``, or ``pipe:NAME``: an in-process
+        :class:`~whexar.sensors.evdev_link.EventPipe`), ``none``, or the path of a command
+        script (JSON lines)."""
+        config: ConfigFile | None = None
+        """Robot configuration file, for its ``[gamepad]`` mapping; absent: the built-in
+        defaults (``RobotConfig().gamepad``)."""
         step_height_m: Positive = 0.06
         """The step height the keyboard's ``+`` and ``-`` start from (the default
         configuration's ``locomotion.step_height_mm``)."""
@@ -60,6 +93,8 @@ class CommandSource(Actor):
             await self._stdin()
         elif source == "keyboard":
             await self._keyboard()
+        elif source == "gamepad" or source.startswith(GAMEPAD_PREFIX):
+            await self._gamepad(source.removeprefix("gamepad").removeprefix(":") or None)
         else:
             await self._script(source)
 
@@ -186,3 +221,126 @@ class CommandSource(Actor):
         terminal, self._terminal = self._terminal, None
         if terminal is not None:
             terminal.restore()
+
+    # ----------------------------------------------------------------- gamepad
+
+    async def _gamepad(self, device: str | None) -> None:
+        cfg = load_config(self.params.config) if self.params.config else RobotConfig()
+        spec = cfg.gamepad
+        link = device or spec.device
+        opener = self._pad_opener(link)
+        self.clock.uses_real_io(f"gamepad {link}")  # refused on virtual time, unless allowed
+        policy = GamepadPolicy(GamepadMapping.from_config(spec), source=self.name)
+        decoder = EventDecoder(policy.mapping.record_bytes)
+        told: str | None = None  # the reason last said down: a cause is said once
+        first = True
+        while True:
+            pad: EventDevice | None = None
+            try:
+                pad = opener()
+            except DeviceGoneError as exc:
+                if str(exc) != told:
+                    told = str(exc)
+                    self.emit(
+                        GamepadLinkDown(t=self.now(), source=self.name, link=link, reason=told)
+                    )
+            if pad is not None:
+                self._connect_pad(pad, policy, spec)
+            if first:
+                # Ready once the first open is tried and told: a pad not there is an event.
+                self.ready()
+                first = False
+            if pad is not None:
+                try:
+                    told = await self._read_pad(pad, policy, decoder)
+                finally:
+                    pad.close()
+                self.emit(GamepadLinkDown(t=self.now(), source=self.name, link=link, reason=told))
+                for command in policy.lost(self.now()):
+                    await self.commands.send(command)
+            await self.clock.sleep(spec.reopen_period_s)
+
+    def _pad_opener(self, link: str) -> Callable[[], EventDevice]:
+        scheme, _, name = link.partition(":")
+        if scheme == EVENT_PIPE.scheme and name:
+            pipe = DEVICES.get(EVENT_PIPE, name, setting=f"source = {self.params.source!r}")
+            return lambda: EventDevice.from_pipe(pipe, link)
+        return lambda: EventDevice.open(link)
+
+    def _connect_pad(self, pad: EventDevice, policy: GamepadPolicy, spec: GamepadSpec) -> None:
+        """A pad was opened: its axes as it describes them (EVIOCGABS), if it can."""
+        infos = {a: info for a in policy.mapping.axes if (info := pad.abs_info(a)) is not None}
+        ranges = {
+            axis: AxisRange(info.minimum, info.maximum)
+            for axis, info in infos.items()
+            if spec.axis_ranges == "device" and info.minimum < info.maximum
+        }
+        values = {axis: info.value for axis, info in infos.items()}
+        policy.connected(self.now(), ranges=ranges, values=values)
+        self.emit(
+            GamepadLinkUp(t=self.now(), source=self.name, link=pad.link, name=pad.name() or "")
+        )
+
+    async def _read_pad(
+        self, pad: EventDevice, policy: GamepadPolicy, decoder: EventDecoder
+    ) -> str:
+        """Read the pad until it goes away; why it did."""
+        axes = policy.mapping.axes
+        decoder.clear()
+        while True:
+            deadline = policy.silence_deadline()
+            readable = False
+            with anyio.CancelScope(
+                deadline=math.inf if deadline is None else self.clock.loop_time(deadline)
+            ):
+                await anyio.wait_readable(pad.fd)
+                readable = True
+            t = self.now()
+            if not readable:  # the deadline passed: nothing came while it drove
+                silent_s = t - (t if policy.last_heard is None else policy.last_heard)
+                commands = policy.silence(t)
+                self.emit(
+                    GamepadLinkSilent(t=t, source=self.name, link=pad.link, silent_s=silent_s)
+                )
+                await self._send_all(commands)
+                continue
+            try:
+                data = pad.read(decoder.record_bytes * PAD_READ_RECORDS)
+            except DeviceGoneError as exc:
+                return str(exc)
+            if data is None:
+                continue
+            if not data:
+                return f"{pad.link}: end of file (the pad went away)"
+            for item in decoder.feed(data):
+                t = self.now()
+                if policy.silent and policy.last_heard is not None:
+                    self.emit(
+                        GamepadLinkHeard(
+                            t=t, source=self.name, link=pad.link, silent_s=t - policy.last_heard
+                        )
+                    )
+                if isinstance(item, Dropped):
+                    keys = pad.keys()
+                    values = {
+                        axis: info.value
+                        for axis in axes
+                        if (info := pad.abs_info(axis)) is not None
+                    }
+                    commands = policy.dropped(t, keys=keys, values=values)
+                    self.emit(
+                        GamepadEventsDropped(
+                            t=t,
+                            source=self.name,
+                            link=pad.link,
+                            discarded=item.discarded,
+                            resynced=keys is not None,
+                        )
+                    )
+                else:
+                    commands = policy.report(t, item.events)
+                await self._send_all(commands)
+
+    async def _send_all(self, commands: list[MotionCommand]) -> None:
+        for command in commands:
+            await self.commands.send(command)
