@@ -146,6 +146,18 @@ def test_the_recorded_configuration_must_be_this_versions(
 
 
 @pytest.mark.slow
+def test_the_recordings_budget_is_no_configuration_a_replay_refuses(
+    recorded: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Where recordings go and how many are kept changes nothing the actors do.
+    data = RobotConfig().model_dump()
+    data["recording"]["max_age_days"] = 0.0
+    monkeypatch.setattr(replay_module, "RobotConfig", lambda: RobotConfig.model_validate(data))
+    result = replay(recorded, stop=0.5, check=True)
+    assert result.divergence is None
+
+
+@pytest.mark.slow
 def test_a_window_checks_what_is_in_it(recorded: Path) -> None:
     whole = replay(recorded, check=True)
     window = replay(recorded, check=True, start=1.0, stop=2.0)

@@ -471,6 +471,31 @@ class GamepadEventsDropped(Event):
     resynced: bool
 
 
+# --------------------------------------------------------------------------- recording
+# The recorder's own events (source "recorder"): about the process, not the robot, so a
+# replay and ``whexar log diff`` leave them out (whexar.record.budget).
+
+
+@message
+class RecordingDeleted(Event):
+    """An older recording ``path`` of ``size_bytes`` was deleted to keep the recordings
+    folder within its budget (``[recording]``): ``reason`` says which limit."""
+
+    path: str
+    size_bytes: int
+    reason: str
+
+
+@message
+class RecordingStopped(Event):
+    """The recording ``path`` stopped before the run's end, for ``reason`` (over its
+    budget, too little free space, a full disk, the recording process gone); the robot
+    runs on, and the file reads up to here."""
+
+    path: str
+    reason: str
+
+
 # --------------------------------------------------------------------------- locomotion
 # The coordinator and the six leg actors (whexar.actors.locomotion).
 # Points are in the body frame (x forward, y left, z up; metres) unless a name says

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
-import os
 import shutil
 import sys
 from collections.abc import Callable
@@ -14,6 +13,8 @@ from typing import Any, Final, TypeAlias
 
 from whexar import _json
 from whexar.errors import ConfigError, UsageError
+from whexar.record.budget import RECORDINGS as RECORDINGS  # the commands' help names it
+from whexar.record.budget import recordings_folder
 from whexar.runtime.clock import wall_stamp
 
 Handler: TypeAlias = Callable[[argparse.Namespace], int]
@@ -68,15 +69,11 @@ def factor(value: str) -> float:
     return _number(value, lambda x: x > 0, "a factor > 0 (1 = real time)")
 
 
-RECORDINGS: Final = "recordings"
-"""The folder runs are recorded into by default, relative to the working directory;
-the environment variable ``WHEXAR_RECORDINGS`` names another."""
-
-
 def default_recording(name: str) -> Path:
-    """Where a run of ``name`` is recorded unless told otherwise: a new file under
-    :data:`RECORDINGS` (made if missing), named after the run and the date."""
-    folder = Path(os.environ.get("WHEXAR_RECORDINGS") or RECORDINGS)
+    """Where a run of ``name`` is recorded unless told otherwise: a new file in the
+    recordings folder (:data:`RECORDINGS`, made if missing), named after the run and
+    the date."""
+    folder = recordings_folder()
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

@@ -206,8 +206,9 @@ def _run(args: argparse.Namespace) -> int:
         code = 0
         async with anyio.create_task_group() as tg:
             # The recorder writes between cycles, on the runtime's clock, a bounded
-            # time at a time (whexar.record.writer.WRITE_BUDGET_S).
-            tg.start_soon(lambda: recorder.run(lambda s: runtime.clock.sleep(s)))
+            # time at a time (whexar.record.writer.WRITE_BUDGET_S), and keeps its budget:
+            # each deletion and a stop is an event, printed as the others.
+            tg.start_soon(lambda: recorder.run(lambda s: runtime.clock.sleep(s), runtime=runtime))
             try:
                 code = await runtime.run(duration=args.duration)
             except BaseException as exc:  # raised as it is, not in a task group's wrapping
@@ -223,7 +224,8 @@ def _run(args: argparse.Namespace) -> int:
         if recorder is not None:
             recorder.close()
             if not args.no_record:
-                print(f"recording: {recorder.path}", flush=True)
+                stopped = "" if recorder.stopped is None else f" (stopped: {recorder.stopped})"
+                print(f"recording: {recorder.path}{stopped}", flush=True)
         if live is not None:
             live.close()
     print(f"stopped: {runtime.stop_reason}", flush=True)

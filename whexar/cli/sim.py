@@ -318,6 +318,10 @@ def _sim(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     if result.recording is not None:
+        from whexar.record.budget import report_line
+
+        for line in filter(None, map(report_line, result.events)):
+            print(line, file=sys.stderr)  # the recordings deleted, a stop
         print(f"recording: {result.recording}", file=sys.stderr)
     if args.json:
         print_json({key: summary.get(key) for key in SUMMARY_KEYS})

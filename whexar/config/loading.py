@@ -34,6 +34,7 @@ from whexar.config.parts import (
     default_legs,
     default_servo_models,
 )
+from whexar.config.recording import RecordingSpec
 from whexar.errors import ConfigError, KinematicsError, Problem
 from whexar.kinematics.body import Stance, stance_feet
 from whexar.kinematics.geometry import LegGeometry
@@ -70,6 +71,7 @@ class RobotConfig(CheckedSection):
     stances: dict[str, StanceSpec] = Field(default_factory=default_stances)
     locomotion: LocomotionSpec = LocomotionSpec()
     gamepad: GamepadSpec = GamepadSpec()
+    recording: RecordingSpec = RecordingSpec()
 
     def problems(self, at: str = "") -> list[Problem]:
         """Every relational problem of the whole configuration."""

@@ -2,6 +2,7 @@
 
 * :mod:`~whexar.record.writer` — the recorder (the runtime's observer) and its MCAP writer;
 * :mod:`~whexar.record.sidecar` — the same recorder in a process of its own, fed over a pipe;
+* :mod:`~whexar.record.budget` — the recordings folder kept within its budget on the disk;
 * :mod:`~whexar.record.encoding` — JSON and JSON Schemas of the message types, link bytes;
 * :mod:`~whexar.record.reader` — reading back, cut files too; ``whexar log recover``;
 * :mod:`~whexar.record.info` — ``whexar log info``;

@@ -48,6 +48,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import TYPE_CHECKING, Any, Final
 
+from whexar.actors.messages import RecordingDeleted, RecordingStopped
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.messages import (
     ActorFailed,
@@ -81,10 +82,12 @@ LIFECYCLE: Final = (
     ActorFailed,
     StopRequested,
     TickOverrun,
+    RecordingDeleted,
+    RecordingStopped,
 )
 """Runtime events about the process, not the robot: not compared (a replay starts and
-stops its actors its own way, on a clock that never overruns). An escalation and a safe
-stop are compared: the robot stops for them."""
+stops its actors its own way, on a clock that never overruns; the recorder's events are
+the disk's). An escalation and a safe stop are compared: the robot stops for them."""
 _SKIPPED: Final = frozenset({"t", "source", "cycle", "seq", "missed"})
 """Fields that are no signal: the time, who said it, counters of the process."""
 _IDENTITY: Final = ("leg", "joint", "servo_id", "sensor", "link")

@@ -253,6 +253,7 @@ _LEVELS: Mapping[str, LogLevel] = {
     "ServoRebooted": LogLevel.WARNING,
     "ServoDegraded": LogLevel.ERROR,
     "SwingDelayed": LogLevel.INFO,  # the gait waiting for a safe margin: normal
+    "RecordingStopped": LogLevel.ERROR,  # the rest of the run is not recorded
 }
 _SUFFIXES: Sequence[tuple[str, LogLevel]] = (
     ("Escalated", LogLevel.FATAL),

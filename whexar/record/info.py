@@ -225,4 +225,6 @@ def format_info(info: LogInfo) -> str:
             f"encodable, at most {end.get('max_pending', '?')} pending, "
             f"{end.get('write_s', '?')} s writing"
         )
+        if end.get("stopped"):
+            lines.append(f"recording stopped before the run's end: {end['stopped']}")
     return "\n".join(lines)

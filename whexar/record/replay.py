@@ -63,6 +63,7 @@ from whexar.record.reader import Recording
 from whexar.record.writer import (
     CONFIG_ATTACHMENT,
     EFFECTIVE_CONFIG_ATTACHMENT,
+    RECORDER_EVENTS,
     URDF_ATTACHMENT,
     Recorder,
 )
@@ -112,6 +113,9 @@ MOVED: Final = {
 before the move replays with the classes at their new homes."""
 FED_ACTORS: Final = frozenset({"whexar.actors.commands:CommandSource"})
 """Actors left out of a replay: their channels are fed from the recording."""
+UNPLAYED: Final = frozenset({"recording"})
+"""Configuration sections a replay leaves out of its comparison: the recordings' budget
+changes nothing the actors do."""
 REPLAY_DEVICE: Final = "replay"
 """The name every played-back device is registered under."""
 Clock = Literal["virtual", "real"]
@@ -243,7 +247,9 @@ def _config(
     effective = rec.attachments.get(EFFECTIVE_CONFIG_ATTACHMENT)
     if effective is None:
         return path, cfg, []
-    changes = config_changes(json.loads(effective.data), cfg.model_dump(mode="json"))
+    recorded = {k: v for k, v in json.loads(effective.data).items() if k not in UNPLAYED}
+    now = {k: v for k, v in cfg.model_dump(mode="json").items() if k not in UNPLAYED}
+    changes = config_changes(recorded, now)
     if changes and override is None:
         shown = "\n  ".join(changes[:10]) + ("\n  …" if len(changes) > 10 else "")
         raise RecordingError(
@@ -546,8 +552,8 @@ def _expected(
     topics = [f"/{ch}" for ch in (*channels, EVENTS_CHANNEL)]
     for r in rec.records(topics, file_order=not by_time):
         msg = r.value
-        if not isinstance(msg, Message):
-            continue
+        if not isinstance(msg, Message) or isinstance(msg, RECORDER_EVENTS):
+            continue  # the recorder's own events are the disk's, not the actors'
         if left_out and (
             getattr(msg, "source", None) in left_out or getattr(msg, "actor", None) in left_out
         ):

@@ -34,6 +34,15 @@ complete file, holding everything it had written to the pipe (what it packs ever
 :data:`PACK_PERIOD_S`). The child itself flushes every ``flush_period_s`` as
 in-process, so if both die the file reads up to its last flush.
 
+A full disk: the child's recorder ends the file at its last whole record, as fully as
+the disk lets (:class:`~whexar.record.writer.Recorder`), writes its report and exits at
+once; the runtime's next send finds the pipe closed and reads why, and its
+:meth:`~whexar.record.writer.HandOver.keep_budget` makes that a
+:class:`~whexar.actors.messages.RecordingStopped` event. The recordings' budget is kept
+on the runtime's side, where the events are (:mod:`whexar.record.budget`); a stop for
+it is one more entry, after which the child ends the file saying why, and the pipe
+closes.
+
 Bounded memory: the buffer holds ``max_pending`` entries and the unsent frames
 ``max_unsent_bytes`` (a child that cannot keep up, or has not started yet: the pipe
 itself holds a second or two of a run). Past either, what does not fit is dropped,
@@ -61,6 +70,7 @@ from typing import Any, Final
 
 import msgspec
 
+from whexar.record.budget import BudgetGuard
 from whexar.record.encoding import RecordingError, type_path
 from whexar.record.writer import (
     _LINK,
@@ -88,6 +98,9 @@ MAX_UNSENT_BYTES: Final = 64 << 20
 """Packed frames kept while the pipe is full, at most (about 100 s of the course)."""
 CLOSE_TIMEOUT_S: Final = 120.0
 """How long :meth:`RecorderProcess.close` waits for the child to end the file."""
+GONE_WAIT_S: Final = 1.0
+"""How long a failed pipe waits for the child to end: it closed its end, so it is
+ending (a full disk: its file ended as far as the disk let it, its report written)."""
 NICENESS: Final = 10
 """The child's niceness: on a busy machine the runtime gets the CPU first; the child
 catches up from the pipe and its bounded buffer."""
@@ -95,17 +108,20 @@ _F_SETPIPE_SZ: Final = getattr(fcntl, "F_SETPIPE_SZ", 1031)
 _FRAME: Final = struct.Struct("<I")  # a frame: its length, then one msgpack array
 
 # Kinds of entries in a frame: (kind, …) arrays; the hand-over's three, then these.
-_TYPE, _DESCRIPTION, _FAILED, _DROPPED = range(_TRANSFORM + 1, _TRANSFORM + 5)
+_TYPE, _DESCRIPTION, _FAILED, _DROPPED, _STOP = range(_TRANSFORM + 1, _TRANSFORM + 6)
 
 
 class RecorderProcess(HandOver):
     """Records a run into the MCAP file ``path`` from a process of its own (module doc).
 
-    ``metadata``, ``attachments`` and ``options`` (``chunk_size``, ``flush_period_s``,
-    ``compression``, ``joint_states``, ``event_log``) as :class:`Recorder`'s; there is
-    no live view (it needs the messages in this process: use :class:`Recorder`).
-    ``max_pending`` bounds the buffer between :meth:`write_pending` calls and
-    ``max_unsent_bytes`` the packed frames the pipe has not taken yet.
+    ``metadata``, ``attachments``, ``guard`` and ``options`` (``chunk_size``,
+    ``flush_period_s``, ``compression``, ``joint_states``, ``event_log``) as
+    :class:`Recorder`'s; there is no live view (it needs the messages in this process:
+    use :class:`Recorder`). The budget is kept here, where the events are: the
+    recording process only writes. ``max_pending`` bounds the buffer between
+    :meth:`write_pending` calls and ``max_unsent_bytes`` the packed frames the pipe has
+    not taken yet. ``opener`` (``module:name``) is the callable the recording process
+    opens its file with, as :class:`Recorder`'s ``opener`` (a test's full disk).
     """
 
     period_s = PACK_PERIOD_S
@@ -118,6 +134,8 @@ class RecorderProcess(HandOver):
         attachments: Mapping[str, str | bytes] | None = None,
         max_pending: int = 100_000,
         max_unsent_bytes: int = MAX_UNSENT_BYTES,
+        guard: BudgetGuard | None = None,
+        opener: str | None = None,
         **options: Any,
     ) -> None:
         if max_pending <= 0 or max_unsent_bytes <= 0:
@@ -128,6 +146,7 @@ class RecorderProcess(HandOver):
         self.path = Path(path)
         self.max_pending = max_pending
         self.max_unsent_bytes = max_unsent_bytes
+        self._start_budget(guard)  # before the file exists: old recordings go first
         try:  # a path that cannot be written is the caller's error, now, not the child's
             with open(self.path, "wb"):
                 pass
@@ -146,6 +165,8 @@ class RecorderProcess(HandOver):
         self._closed = False
         self._broken: str | None = None
         self._final: RecorderStats | None = None
+        self._report: dict[str, Any] | None = None
+        """What the child said as it ended (its statistics, its failure), once read."""
 
         self._child = subprocess.Popen(
             [sys.executable, "-m", "whexar.record.sidecar"],
@@ -162,6 +183,7 @@ class RecorderProcess(HandOver):
             "metadata": {str(k): str(v) for k, v in (metadata or {}).items()},
             "attachments": dict(attachments or {}),
             "options": options,
+            "opener": opener,
             # Where this process finds modules, for the message types of extensions
             # (appended by the child, after its own: nothing here shadows its start-up).
             "sys_path": [p for p in sys.path if p],
@@ -199,6 +221,9 @@ class RecorderProcess(HandOver):
         Never raises: a child that is gone ends the recording (``failure``) and the
         robot runs on."""
         start = monotonic()
+        if self._stopped is not None and not self._closed:
+            self._drain()
+            return 0
         if not self._writable():
             return 0
         pending = self._pending
@@ -274,24 +299,67 @@ class RecorderProcess(HandOver):
             self._gone(exc)
 
     def _gone(self, exc: OSError) -> None:
-        code = self._child.poll()
-        self._broken = (
-            f"the recording process ended (exit status {code})"
-            if code is not None
-            else f"the pipe to the recording process failed: {exc.strerror or exc}"
-        )
+        """The pipe failed: the child ended (a full disk ends it at once, its file ended
+        as far as the disk let it) or was killed. Why, from its report if it left one."""
         self._dropped += len(self._pending)
-        self._pending.clear()
+        self._let_go()
         self._out.clear()
         self._unsent = 0
+        self._hang_up()
+        code = None
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            code = self._child.wait(timeout=GONE_WAIT_S)  # it is ending: its pipe is closed
+        if code is not None:
+            self._read_report(wait=False)
+        failure = (self._report or {}).get("failure")
+        if failure:
+            self._broken = str(failure)
+        elif code is not None:
+            self._broken = f"the recording process ended (exit status {code})"
+        else:
+            self._broken = f"the pipe to the recording process failed: {exc.strerror or exc}"
+
+    def _hang_up(self) -> None:
+        """Close this end of the pipe: the child writes what it has and ends the file."""
+        stdin = self._child.stdin
+        if stdin is not None:
+            self._child.stdin = None  # so that communicate() does not flush it again
+            with contextlib.suppress(OSError):
+                stdin.close()
+
+    def _read_report(self, *, wait: bool) -> None:
+        """The child's last words (JSON on its standard output): its statistics and its
+        failure; with ``wait``, after waiting up to :data:`CLOSE_TIMEOUT_S` for it to end."""
+        if self._report is not None:
+            return
+        timeout = CLOSE_TIMEOUT_S if wait else GONE_WAIT_S
+        try:
+            out, _ = self._child.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self._child.kill()
+            self._child.communicate()
+            out = b""
+            self._broken = f"the recording process did not end the file in {timeout:g} s"
+        found: dict[str, Any] = {}
+        with contextlib.suppress(ValueError):
+            found = json.loads(out or b"{}")
+        self._report = found
+        if "stats" in found:
+            stats = RecorderStats(**found["stats"])
+            self._final = dataclasses.replace(
+                stats,
+                dropped=max(stats.dropped, self._dropped),
+                pending=0,
+                max_pending=max(stats.max_pending, self._max_pending),
+            )
 
     # ------------------------------------------------------------------ end
 
     @property
     def stats(self) -> RecorderStats:
-        """What the recorder did: the child's figures once :meth:`close`\\ d; before,
-        only this side's (``pending``, ``max_pending``, ``dropped``, ``write_s``, the
-        file's size so far), the child's counts being 0."""
+        """What the recorder did: the child's figures once it ended; before, only this
+        side's (``pending``, ``max_pending``, ``dropped``, ``write_s``, the file's size
+        so far), the child's counts being 0."""
         if self._final is not None:
             return self._final
         try:
@@ -312,49 +380,57 @@ class RecorderProcess(HandOver):
         )
 
     @property
-    def failure(self) -> str | None:
-        """Why the recording stopped (the child is gone, a full disk), or ``None``."""
-        return self._broken
+    def _ended(self) -> bool:
+        # Stopped, and the pipe closed: the child ends the file on its own.
+        return self._stopped is not None and self._child.stdin is None
+
+    def stop(self, reason: str) -> None:
+        """End the recording now for ``reason`` (its budget), without waiting: what is
+        buffered is packed and sent, then the pipe is closed, and the child writes it
+        all and ends the file (:meth:`run` sends what the pipe did not take yet first);
+        what is handed over from now on is let go. :meth:`close` waits for the child."""
+        if self._closed or self._stopped is not None:
+            return
+        self.write_pending()
+        if self._broken is None:
+            self._queue(self._encoder.encode([(_STOP, reason)]))
+        self._stopped = reason
+        self._let_go()
+        self._drain()
+
+    def _drain(self) -> None:
+        """After a stop: send what the pipe takes; once all is sent, hang up."""
+        if self._broken is None and self._out:
+            self._send()
+        if not self._out:
+            self._hang_up()
 
     def close(self) -> RecorderStats:
         """Send everything pending, let the child end the file, and wait for it.
 
         Idempotent; returns the final :attr:`stats` (``write_s`` is the child's writing
         time, ``process_cpu_s`` its CPU). Raises :class:`RecordingError` if the file
-        could not be written to its end.
+        could not be written to its end, unless :meth:`keep_budget` reported that as a
+        :class:`~whexar.actors.messages.RecordingStopped` event.
         """
         if self._closed:
-            if self._broken is not None:
+            if self._broken is not None and not self._reported:
                 raise RecordingError(f"recording {self.path} failed: {self._broken}")
             return self.stats
         self.write_pending()
         self._closed = True
-        os.set_blocking(self._fd, True)  # the rest now, waiting for the child to take it
-        while self._out and self._broken is None:
-            self._send()
-        try:
-            report, _ = self._child.communicate(timeout=CLOSE_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            self._child.kill()
-            self._child.communicate()
-            report = b""
-            self._broken = f"the recording process did not end the file in {CLOSE_TIMEOUT_S:g} s"
-        found: dict[str, Any] = {}
-        with contextlib.suppress(ValueError):
-            found = json.loads(report or b"{}")
-        if "stats" in found:
-            stats = RecorderStats(**found["stats"])
-            self._final = dataclasses.replace(
-                stats,
-                dropped=max(stats.dropped, self._dropped),
-                pending=0,
-                max_pending=max(stats.max_pending, self._max_pending),
-            )
+        if self._child.stdin is not None:
+            os.set_blocking(self._fd, True)  # the rest now, waiting for the child to take it
+            while self._out and self._broken is None:
+                self._send()
+        self._hang_up()
+        self._read_report(wait=True)
+        found = self._report or {}
         if found.get("failure"):
             self._broken = str(found["failure"])
         elif self._broken is None and self._final is None:
             self._broken = f"the recording process failed (exit status {self._child.returncode})"
-        if self._broken is not None:
+        if self._broken is not None and not self._reported:
             raise RecordingError(f"recording {self.path} failed: {self._broken}")
         return self.stats
 
@@ -465,6 +541,10 @@ class _DroppedEntry(msgspec.Struct, array_like=True, tag=_DROPPED):
     count: int
 
 
+class _StopEntry(msgspec.Struct, array_like=True, tag=_STOP):
+    reason: str
+
+
 _Entry = (
     _MessageEntry
     | _LinkEntry
@@ -473,6 +553,7 @@ _Entry = (
     | _DescriptionEntry
     | _FailedEntry
     | _DroppedEntry
+    | _StopEntry
 )
 
 
@@ -511,6 +592,8 @@ class _Child:
                 recorder.not_recorded(entry.channel, entry.name, entry.t, entry.reason)
             elif entry.__class__ is _DroppedEntry:
                 recorder.dropped_elsewhere(entry.count)
+            elif entry.__class__ is _StopEntry:
+                recorder.stop(entry.reason)  # its budget: the file ends now, saying why
 
     def message(self, entry: _MessageEntry) -> None:
         decoder = self.types.get(entry.name, f"type {entry.name} was never declared")
@@ -529,6 +612,12 @@ class _Child:
         self.recorder.not_recorded(entry.channel, entry.name, t, decoder)
 
 
+def _opener(path: str) -> Any:
+    """The callable ``module:name`` names (:class:`RecorderProcess`'s ``opener``)."""
+    module, _, name = path.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
 def main() -> int:
     """The child: frames from standard input into a :class:`Recorder`; its statistics
     (JSON) to standard output once the pipe closes."""
@@ -542,29 +631,31 @@ def main() -> int:
         return 1  # the parent went before it began
     start = msgspec.msgpack.decode(first)
     sys.path.extend(p for p in start["sys_path"] if p not in sys.path)
-    failure: str | None = None
     try:
+        opener = None if start.get("opener") is None else _opener(start["opener"])
         recorder = Recorder(
             start["path"],
             metadata=start["metadata"],
             attachments=start["attachments"],
+            opener=opener,
             **start["options"],
         )
     except RecordingError as exc:
         sys.stdout.write(json.dumps({"failure": str(exc)}))
         return 1
     child = _Child(recorder)
-    while True:
+    while recorder.failure is None:
         frame = frames.next(recorder.flush_period_s)
         if frame is not None:
             if frame == _Frames.EOF:
                 break
             child.frame(frame)
         recorder.write_pending()  # and, every flush period, a flush
-    try:
-        stats = recorder.close()
-    except RecordingError as exc:
-        failure, stats = str(exc), recorder.stats
+    # A full disk ends the recording at once (the file ended as far as the disk let
+    # it): the runtime learns it from the pipe, closed as this process ends.
+    with contextlib.suppress(RecordingError):
+        recorder.close()
+    failure, stats = recorder.failure, recorder.stats
     stats = dataclasses.replace(stats, process_cpu_s=time.process_time())
     sys.stdout.write(json.dumps({"stats": dataclasses.asdict(stats), "failure": failure}))
     return 0

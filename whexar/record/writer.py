@@ -19,6 +19,15 @@ Nothing is dropped on the normal path. Only if the owner stops draining does the
 buffer reach ``max_pending``; then the oldest entries go, each one counted: the count
 is logged on ``/log`` when writing resumes and stored in ``whexar.end``.
 
+Disks: every recording keeps a budget (:mod:`whexar.record.budget`): checked before
+the file is made and between writes, it deletes older recordings, and stops the
+recording when it cannot be kept (:meth:`HandOver.keep_budget`, which :meth:`~HandOver.run`
+calls; each deletion and a stop is an event). A write that fails (a full disk) stops
+the recording too: the file is written unbuffered, so the recorder knows where its last
+whole record ends; it cuts the file back there and ends it as fully as the disk lets
+(:meth:`_McapFile.salvage`): every message of a whole chunk stays readable. Either way
+the hand-over lets go of what follows, and the robot runs on.
+
 What a recording holds
 ----------------------
 * metadata ``whexar`` (the whexar version, the encoding), ``run`` (what the caller
@@ -74,7 +83,7 @@ from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Final, Protocol, Self
+from typing import IO, TYPE_CHECKING, Any, Final, Protocol, Self
 
 import lz4.frame  # type: ignore[import-untyped]  # no type hints
 import zstandard
@@ -96,8 +105,9 @@ from mcap.records import (
 from mcap.writer import LIBRARY_IDENTIFIER
 
 from whexar import __version__
-from whexar.actors.messages import ServoStates
+from whexar.actors.messages import RecordingDeleted, RecordingStopped, ServoStates
 from whexar.record import foxglove
+from whexar.record.budget import BudgetGuard, Plan
 from whexar.record.encoding import (
     LINK_SCHEMA,
     LINK_SCHEMA_NAME,
@@ -112,11 +122,17 @@ from whexar.record.encoding import (
 )
 from whexar.runtime.clock import monotonic
 from whexar.runtime.messages import MESSAGE_TYPES, Event, Message
+from whexar.runtime.wiring import EVENTS_CHANNEL
+
+if TYPE_CHECKING:
+    from whexar.runtime.supervisor import Runtime
 
 __all__ = [
     "CONFIG_ATTACHMENT",
     "EFFECTIVE_CONFIG_ATTACHMENT",
     "FORMAT",
+    "RECORDER",
+    "RECORDER_EVENTS",
     "URDF_ATTACHMENT",
     "HandOver",
     "Recorder",
@@ -135,6 +151,10 @@ JOINT_STATES_PERIOD_S: Final = 1 / 30
 states at 109 Hz, plenty for Foxglove's 3D view; every servo state is recorded whole."""
 _JOINT_STATES_PERIOD_NS: Final = round(JOINT_STATES_PERIOD_S * 1e9)
 FORMAT: Final = "whexar-mcap/1"
+RECORDER: Final = "recorder"
+"""The ``source`` of the recorder's events and the name of its ``/log`` entries."""
+RECORDER_EVENTS: Final = (RecordingDeleted, RecordingStopped)
+"""The recorder's events: about the disk, not the robot (a replay leaves them out)."""
 URDF_ATTACHMENT: Final = "robot.urdf"
 """The robot's URDF (a simulation's recording)."""
 CONFIG_ATTACHMENT: Final = "config.toml"
@@ -269,13 +289,14 @@ class HandOver:
         raise NotImplementedError
 
     def _writable(self) -> bool:
-        """A write's start: note the buffer's high-water mark; ``False`` once closed, or
-        once the recording broke (what is buffered is then dropped and counted)."""
+        """A write's start: note the buffer's high-water mark; ``False`` once closed or
+        stopped, or once the recording broke (what is buffered is then dropped and
+        counted)."""
         if self._closed:
             return False
         pending = self._pending
         self._max_pending = max(self._max_pending, len(pending))
-        if self._broken is not None:
+        if self._broken is not None or self._stopped is not None:
             self._dropped += len(pending)
             pending.clear()
             return False
@@ -285,18 +306,124 @@ class HandOver:
         """End the recording (each recorder says how)."""
         raise NotImplementedError
 
+    # ------------------------------------------------------------------ the budget, stopping
+
+    _guard: BudgetGuard | None
+    _stopped: str | None
+    _reported: bool
+    _plans: list[Plan]
+    _now: float
+    events: list[Event]
+    """What this recorder reported: :class:`~whexar.actors.messages.RecordingDeleted`
+    and :class:`~whexar.actors.messages.RecordingStopped`, in order."""
+    path: Path
+
+    def _start_budget(self, guard: BudgetGuard | None) -> None:
+        """The first check of the budget (:mod:`whexar.record.budget`), before the file
+        exists: old recordings go before anything is written; :meth:`run` reports it."""
+        self._guard = guard
+        self._stopped = None
+        self._reported = False
+        self._now = 0.0
+        self.events = []
+        self._plans = [] if guard is None else [guard.check()]
+
+    @property
+    def failure(self) -> str | None:
+        """Why the file could not be written any more (a full disk, the recording
+        process gone), or ``None``."""
+        return self._broken
+
+    @property
+    def stopped(self) -> str | None:
+        """Why the recording stopped before :meth:`close` (its budget, a failure), or
+        ``None``."""
+        return self._stopped
+
+    def stop(self, reason: str) -> None:
+        """End the recording now, cleanly, for ``reason``: what is buffered is written
+        and the file ended; what is handed over from now on is let go (each recorder
+        says how)."""
+        raise NotImplementedError
+
+    @property
+    def _ended(self) -> bool:
+        """Nothing more to write: the file is ended (:meth:`run` returns)."""
+        return self._stopped is not None
+
+    def _let_go(self) -> None:
+        """From now on, the hand-over keeps nothing (the recording has stopped)."""
+        self._append = _discard
+        self._pending.clear()
+
+    def keep_budget(self, runtime: Runtime | None = None) -> None:
+        """Report what the budget's checks did, check it when due, and stop the
+        recording when it cannot be kept or the file cannot be written any more; each
+        deletion and a stop is an event on ``runtime``'s ``events`` channel (without a
+        runtime, handed to this recorder only). :meth:`run` calls it after every write."""
+        if runtime is not None:
+            try:
+                self._now = runtime.clock.now()
+            except RuntimeError:  # not running yet: report once it is
+                return
+        if self._stopped is not None:
+            return
+        if self._broken is not None:  # a full disk, the recording process gone
+            self._stopped = self._broken
+            self._reported = True
+            self._let_go()
+            self._emit(runtime, RecordingStopped, reason=f"cannot write: {self._broken}")
+            return
+        plans, self._plans = self._plans, []
+        if self._guard is not None and self._guard.due():
+            plans.append(self._guard.check())
+        for found in plans:
+            for d in found.deletions:
+                self._emit(
+                    runtime,
+                    RecordingDeleted,
+                    path=str(d.file.path),
+                    size_bytes=d.file.size,
+                    reason=d.reason,
+                )
+            if found.stop is not None and self._stopped is None:
+                # Emitted first, so that it is the recording's last message.
+                self._emit(runtime, RecordingStopped, reason=found.stop)
+                self.stop(found.stop)
+
+    def _emit(self, runtime: Runtime | None, kind: type[Event], **fields: Any) -> None:
+        if kind is RecordingStopped:
+            fields["path"] = str(self.path)
+        event = kind(t=self._now, source=RECORDER, **fields)
+        self.events.append(event)
+        if runtime is not None:
+            runtime.emit(event)  # which hands it to this recorder too, as its observer
+        else:
+            self(EVENTS_CHANNEL, event)
+
+    def __call__(self, channel: str, msg: Message) -> None:
+        """The runtime's observer (each recorder's own)."""
+        raise NotImplementedError
+
     async def run(
         self,
         sleep: Callable[[float], Awaitable[object]],
         period_s: float | None = None,
         budget_s: float | None = WRITE_BUDGET_S,
+        *,
+        runtime: Runtime | None = None,
     ) -> None:
         """Write pending entries every ``period_s`` (the recorder's :attr:`period_s` by
         default), at most ``budget_s`` at a time (``sleep`` is the owner's: the runtime
-        clock's, anyio's …) until cancelled; :meth:`close` stays the owner's."""
+        clock's, anyio's …), and keep the budget (:meth:`keep_budget`, its events on
+        ``runtime``), until cancelled or the recording stops; :meth:`close` stays the
+        owner's."""
         period = self.period_s if period_s is None else period_s
         while not self._closed:
             self.write_pending(budget_s)
+            self.keep_budget(runtime)
+            if self._ended:
+                return
             # More left: let the actors run, then go on (no cycle waits longer than one
             # budget, and the recorder still keeps up however much there is).
             await sleep(0.0 if self._pending else period)
@@ -320,7 +447,10 @@ class Recorder(HandOver):
     ``run``; ``attachments`` (name → text or bytes: configuration, wiring …) as MCAP
     attachments, their media type guessed from the name's suffix. ``max_pending``
     bounds the buffer between :meth:`write_pending` calls. ``joint_states`` and
-    ``event_log`` write Foxglove's ``/joint_states`` and ``/log`` views.
+    ``event_log`` write Foxglove's ``/joint_states`` and ``/log`` views. ``guard``
+    keeps the recordings folder within its budget (:mod:`whexar.record.budget`);
+    ``opener`` opens the file, unbuffered (a test's full disk; default
+    ``open(path, "wb", buffering=0)``).
 
     The hand-over methods (``__call__``, :meth:`link_bytes`, :meth:`transform`) may be
     called from any thread (they only append to a deque); :meth:`write_pending` and
@@ -340,6 +470,8 @@ class Recorder(HandOver):
         joint_states: bool = True,
         event_log: bool = True,
         live: LiveSink | None = None,
+        guard: BudgetGuard | None = None,
+        opener: Callable[[Path], IO[bytes]] | None = None,
     ) -> None:
         if compression not in _COMPRESSION:
             raise RecordingError(
@@ -356,42 +488,6 @@ class Recorder(HandOver):
         self._joint_states = joint_states
         self._event_log = event_log
         self._live = live
-        try:
-            self._file: IO[bytes] = open(self.path, "wb")  # noqa: SIM115  (closed by close())
-        except OSError as exc:
-            raise RecordingError(f"cannot record to {self.path}: {exc.strerror or exc}") from None
-        self._mcap = _McapFile(self._file, chunk_size, compression)
-        self._mcap.start(library=f"whexar {__version__}; {LIBRARY_IDENTIFIER}")
-        self._mcap.metadata(
-            "whexar",
-            {
-                "version": __version__,
-                "format": FORMAT,
-                "message_encoding": MESSAGE_ENCODING,
-                "time": "runtime clock: log time ns = t s * 1e9 (1 at the least)",
-                "compression": compression,
-                "chunk_size": str(chunk_size),
-                "flush_period_s": repr(flush_period_s),
-            },
-        )
-        if metadata:
-            self._mcap.metadata("run", {str(k): str(v) for k, v in metadata.items()})
-        for name, content in (attachments or {}).items():
-            if isinstance(content, str):
-                data = content.encode("utf-8")
-                media = _MEDIA_TYPES.get(Path(name).suffix.lower(), "text/plain")
-            else:
-                data = bytes(content)
-                media = _MEDIA_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
-            self._mcap.attachment(name, media, data)
-        self._file.flush()
-
-        # Compile the codec of every registered type now, so that no write between two
-        # control cycles pays for a type's first message.
-        for cls in list(MESSAGE_TYPES.values()):
-            with contextlib.suppress(RecordingError):
-                codec(cls)
-
         self._pending: deque[tuple[Any, ...]] = deque()
         self._append = self._pending.append
         self._schemas: dict[str, int] = {}
@@ -404,10 +500,50 @@ class Recorder(HandOver):
         self._max_pending = 0
         self._write_s = 0.0
         self._flushes = 0
-        self._last_flush = monotonic()
         self._next_joint_states = 0
         self._closed = False
         self._broken: str | None = None
+        self._start_budget(guard)  # before the file exists: old recordings go first
+
+        try:
+            self._file: IO[bytes] = (opener or _open_unbuffered)(self.path)
+        except OSError as exc:
+            raise RecordingError(f"cannot record to {self.path}: {exc.strerror or exc}") from None
+        self._mcap = _McapFile(self._file, chunk_size, compression)
+        try:
+            self._mcap.start(library=f"whexar {__version__}; {LIBRARY_IDENTIFIER}")
+            self._mcap.metadata(
+                "whexar",
+                {
+                    "version": __version__,
+                    "format": FORMAT,
+                    "message_encoding": MESSAGE_ENCODING,
+                    "time": "runtime clock: log time ns = t s * 1e9 (1 at the least)",
+                    "compression": compression,
+                    "chunk_size": str(chunk_size),
+                    "flush_period_s": repr(flush_period_s),
+                },
+            )
+            if metadata:
+                self._mcap.metadata("run", {str(k): str(v) for k, v in metadata.items()})
+            for name, content in (attachments or {}).items():
+                if isinstance(content, str):
+                    data = content.encode("utf-8")
+                    media = _MEDIA_TYPES.get(Path(name).suffix.lower(), "text/plain")
+                else:
+                    data = bytes(content)
+                    media = _MEDIA_TYPES.get(Path(name).suffix.lower(), "application/octet-stream")
+                self._mcap.attachment(name, media, data)
+            self._file.flush()
+        except OSError as exc:  # a full disk from the start: the robot runs all the same
+            self._break(exc)
+        self._last_flush = monotonic()
+
+        # Compile the codec of every registered type now, so that no write between two
+        # control cycles pays for a type's first message.
+        for cls in list(MESSAGE_TYPES.values()):
+            with contextlib.suppress(RecordingError):
+                codec(cls)
 
     # ------------------------------------------------------------------ hand-over (O(1))
 
@@ -432,8 +568,9 @@ class Recorder(HandOver):
         for the next call. Closes the chunk and flushes the file when ``flush_period_s``
         has passed since the last flush. Never raises for a message it cannot encode
         (it is counted and logged on ``/log``); a file that cannot be written any more
-        (a full disk) ends the recording (``stats.dropped`` counts what follows), and
-        the robot runs on.
+        (a full disk) ends the recording: the file ends at its last whole record
+        (:meth:`_break`), what is buffered is dropped and counted, what follows is let
+        go, and the robot runs on.
         """
         start = monotonic()
         if not self._writable():
@@ -611,7 +748,7 @@ class Recorder(HandOver):
             return
         self._failed_types.add((channel, type_name))
         text = f"recorder: cannot encode {type_name} on /{channel} (not recorded): {reason}"
-        self._add(self._topic("/log"), ns, foxglove.log_entry(ns, 4, text, "recorder"))
+        self._add(self._topic("/log"), ns, foxglove.log_entry(ns, 4, text, RECORDER))
 
     def _log_dropped(self) -> None:
         count = self._dropped - self._dropped_logged
@@ -621,12 +758,17 @@ class Recorder(HandOver):
             "was full: write_pending() was not called often enough)"
         )
         ns = self._mcap.last_ns
-        self._add(self._topic("/log"), ns, foxglove.log_entry(ns, 4, text, "recorder"))
+        self._add(self._topic("/log"), ns, foxglove.log_entry(ns, 4, text, RECORDER))
 
     def _break(self, exc: OSError) -> None:
+        """The file cannot be written any more (a full disk): nothing more is taken, and
+        the file ends at its last whole record, as fully as the disk lets it
+        (:meth:`_McapFile.salvage`): every message written before stays readable."""
         self._broken = f"{exc.strerror or exc}"
         self._dropped += len(self._pending)
-        self._pending.clear()
+        self._let_go()
+        with contextlib.suppress(OSError):
+            self._mcap.salvage("whexar.end", lambda: self._end_values(self._broken))
         with contextlib.suppress(OSError):
             self._file.close()
 
@@ -652,49 +794,79 @@ class Recorder(HandOver):
             flushes=self._flushes,
         )
 
-    @property
-    def failure(self) -> str | None:
-        """Why the file could not be written any more (a full disk), or ``None``."""
-        return self._broken
+    def _end_values(self, stopped: str | None, since: float | None = None) -> dict[str, str]:
+        """The statistics stored as metadata ``whexar.end``; ``stopped``: why the
+        recording stopped before the run's end."""
+        stats = self.stats
+        write_s = stats.write_s + (0.0 if since is None else monotonic() - since)
+        values = {
+            "messages": str(stats.messages),
+            "link_chunks": str(stats.link_chunks),
+            "records": str(stats.records),
+            "dropped": str(stats.dropped),
+            "errors": str(stats.errors),
+            "max_pending": str(stats.max_pending),
+            "write_s": f"{write_s:.3f}",
+        }
+        if stopped is not None:
+            values["stopped"] = stopped
+        return values
+
+    def _end_file(self, stopped: str | None) -> None:
+        """The statistics, MCAP's summary and footer; the file closed."""
+        start = monotonic()
+        try:
+            if self._dropped > self._dropped_logged:
+                self._log_dropped()
+            self._mcap.close_chunk()  # the statistics come after the last message
+            self._mcap.metadata("whexar.end", self._end_values(stopped, start))
+            self._mcap.finish()
+            self._file.close()
+        except OSError as exc:
+            self._break(exc)
+        self._write_s += monotonic() - start
+
+    def stop(self, reason: str) -> None:
+        """End the recording now for ``reason`` (its budget): everything buffered is
+        written, then the statistics (``whexar.end`` says why it stopped) and the
+        summary; what is handed over from now on is let go. :meth:`close` then only
+        returns the statistics."""
+        if self._closed or self._stopped is not None:
+            return
+        self.write_pending()
+        self._stopped = reason
+        self._let_go()
+        self._closed = True
+        if self._broken is None:
+            self._end_file(reason)
 
     def close(self) -> RecorderStats:
         """Write everything pending, the statistics and the summary; close the file.
 
         Idempotent; returns the final :attr:`stats`. Raises :class:`RecordingError` if
-        the file could not be written (the robot ran on; the file is readable up to
-        its last flush).
+        the file could not be written (the robot ran on; the file reads up to its last
+        whole record), unless :meth:`keep_budget` reported that as a
+        :class:`~whexar.actors.messages.RecordingStopped` event.
         """
         if self._closed:
             return self.stats
         self.write_pending()
         self._closed = True
-        start = monotonic()
         if self._broken is None:
-            try:
-                if self._dropped > self._dropped_logged:
-                    self._log_dropped()
-                stats = self.stats
-                self._mcap.close_chunk()  # the statistics come after the last message
-                self._mcap.metadata(
-                    "whexar.end",
-                    {
-                        "messages": str(stats.messages),
-                        "link_chunks": str(stats.link_chunks),
-                        "records": str(stats.records),
-                        "dropped": str(stats.dropped),
-                        "errors": str(stats.errors),
-                        "max_pending": str(stats.max_pending),
-                        "write_s": f"{stats.write_s + monotonic() - start:.3f}",
-                    },
-                )
-                self._mcap.finish()
-                self._file.close()
-            except OSError as exc:
-                self._break(exc)
-        self._write_s += monotonic() - start
-        if self._broken is not None:
+            self._end_file(None)
+        if self._broken is not None and not self._reported:
             raise RecordingError(f"recording {self.path} failed: {self._broken}")
         return self.stats
+
+
+def _discard(entry: tuple[Any, ...]) -> None:
+    """The hand-over of a recording that has stopped: keeps nothing."""
+
+
+def _open_unbuffered(path: Path) -> IO[bytes]:
+    # Unbuffered: every write is the recorder's own (a chunk at a time), so after a
+    # failed one it knows exactly what the file holds (_McapFile.salvage).
+    return open(path, "wb", buffering=0)  # closed by Recorder.close()
 
 
 # --------------------------------------------------------------------------- the file
@@ -720,6 +892,9 @@ class _McapFile:
         self._stream = stream
         self._offset = 0
         """Bytes written to ``stream`` so far (no ``tell()``: a system call)."""
+        self._good = 0
+        """Where the last whole record (a chunk: with its message indexes) ends: what
+        the file holds for sure after a failed write (:meth:`salvage`)."""
         self._chunk_size = chunk_size
         self._compression = "" if compression == "none" else compression
         self._compression_field = _STRING_LENGTH.pack(len(self._compression)) + (
@@ -758,7 +933,13 @@ class _McapFile:
     # ------------------------------------------------------------------ once-only records
 
     def _write(self, data: bytes | bytearray | memoryview) -> None:
-        self._stream.write(data)
+        # An unbuffered file may take part of it (a disk filling up), then raise.
+        written = self._stream.write(data)
+        if written is not None and written < len(data):
+            view = memoryview(data)[written:]
+            while view:
+                written = self._stream.write(view) or 0
+                view = view[written:]
         self._offset += len(data)
 
     def _record(self, record: Any) -> tuple[int, int]:
@@ -767,6 +948,7 @@ class _McapFile:
         data: bytes = self._builder.end()  # type: ignore[no-untyped-call]
         offset = self._offset
         self._write(data)
+        self._good = self._offset
         return offset, len(data)
 
     def start(self, library: str) -> None:
@@ -799,8 +981,8 @@ class _McapFile:
     def schema(self, name: str, encoding: str, data: bytes) -> int:
         """A Schema record; returns its id (from 1)."""
         schema = Schema(id=len(self._schemas) + 1, name=name, encoding=encoding, data=data)
-        self._schemas.append(schema)
         self._record(schema)
+        self._schemas.append(schema)  # once written: the summary lists what the file holds
         return schema.id
 
     def channel(
@@ -814,10 +996,10 @@ class _McapFile:
             schema_id=schema_id,
             metadata=dict(metadata),
         )
+        self._record(channel)
         self._channels.append(channel)
         self._index.append([])
         self._counts.append(0)
-        self._record(channel)
         return channel.id
 
     # ------------------------------------------------------------------ messages
@@ -837,11 +1019,10 @@ class _McapFile:
 
     def close_chunk(self) -> None:
         """Compress the current chunk and write it with its message indexes (if it holds
-        anything)."""
+        anything). Nothing is counted until all of it is written."""
         chunk = self._chunk
         if not chunk:
             return
-        self._chunk = bytearray()
         records = bytes(chunk)
         compressed = self._compress(records)
         used = [(cid, index) for cid, index in enumerate(self._index) if index]
@@ -874,9 +1055,12 @@ class _McapFile:
             pieces.append(_INDEX_HEAD.pack(_OP_MESSAGE_INDEX, 6 + len(body), cid, len(body)))
             pieces.append(body)
             position += _INDEX_HEAD.size + len(body)
+        self._write(b"".join(pieces))
+        self._good = self._offset
+        self._chunk = bytearray()
+        for cid, index in used:
             self._counts[cid] += len(index) // 2
             index.clear()
-        self._write(b"".join(pieces))
         self._chunk_indexes.append(
             ChunkIndex(
                 message_start_time=start,
@@ -901,6 +1085,14 @@ class _McapFile:
     def finish(self) -> None:
         """The last chunk, Data End, the summary, the Footer and the closing magic."""
         self.close_chunk()
+        end = self._good
+        try:
+            self._finish()
+        except OSError:
+            self._good = end  # the data section's end: what a salvage cuts back to
+            raise
+
+    def _finish(self) -> None:
         self._record(DataEnd(data_section_crc=0))  # 0: not computed (optional)
         summary_start = self._offset
         builder = RecordBuilder()
@@ -940,7 +1132,53 @@ class _McapFile:
         self._write(footer)
         self._write(_CRC.pack(crc))
         self._write(MAGIC)
+        self._good = self._offset
         self._stream.flush()
+
+    def finish_bare(self) -> None:
+        """Data End and a Footer with no summary (summary start 0, CRC 0: "not
+        available", which the specification allows): the least that ends a file."""
+        end = self._good
+        try:
+            self._record(DataEnd(data_section_crc=0))
+            self._write(_FOOTER_HEAD.pack(_OP_FOOTER, 20, 0, 0) + _CRC.pack(0) + MAGIC)
+        except OSError:
+            self._good = end
+            raise
+        self._good = self._offset
+        self._stream.flush()
+
+    def salvage(self, name: str, values: Callable[[], Mapping[str, str]]) -> bool:
+        """After a failed write (a full disk): cut the file back to its last whole record,
+        losing the chunk that was being written, and end it there as fully as the disk
+        lets: metadata ``name`` (``values()``, once cut back) and the summary; else a
+        bare footer (:meth:`finish_bare`); else nothing more, and the file ends at a
+        whole record (readers read every message, and say that the footer is missing).
+        Returns whether it has a footer; raises :class:`OSError` if it cannot even be
+        cut back."""
+        self._cut(self._good)
+        mark = self._good
+        try:
+            self.metadata(name, values())
+            self.finish()
+            return True
+        except OSError:
+            self._cut(mark)
+        try:
+            self.finish_bare()
+            return True
+        except OSError:
+            self._cut(mark)
+        return False
+
+    def _cut(self, offset: int) -> None:
+        """The file cut back to ``offset``; the chunk being filled forgotten."""
+        self._chunk = bytearray()
+        for index in self._index:
+            index.clear()
+        self._stream.truncate(offset)
+        self._stream.seek(offset)
+        self._offset = self._good = offset
 
 
 def _unencodable(msg: Any) -> Any:

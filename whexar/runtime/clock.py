@@ -103,6 +103,7 @@ __all__ = [
     "run",
     "wait_until",
     "wall_stamp",
+    "wall_time",
 ]
 
 
@@ -402,6 +403,11 @@ def monotonic() -> float:
 def wall_stamp() -> str:
     """The local date and time as ``YYYYmmdd-HHMMSS``: a default name for a recording."""
     return time.strftime("%Y%m%d-%H%M%S")
+
+
+def wall_time() -> float:
+    """Seconds since the epoch, the time files are stamped with: how old a recording is."""
+    return time.time()
 
 
 _SPIN_S = 0.0003

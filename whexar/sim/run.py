@@ -19,6 +19,7 @@ and the coordinator stands the robot up from there.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import json
 import math
@@ -395,7 +396,7 @@ def simulate(
             return
         async with anyio.create_task_group() as tg:
             # The recorder writes as on the robot: between cycles, a bounded time at once.
-            tg.start_soon(recorder.run, h.sleep)
+            tg.start_soon(functools.partial(recorder.run, h.sleep, runtime=h.runtime))
             await timeline_and_samples(h)
 
     async def timeline_and_samples(h: Harness) -> None:
