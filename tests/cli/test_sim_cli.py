@@ -99,3 +99,15 @@ def test_bench_sim_splits_a_bus_cycle_four_ways_and_removes_its_timers() -> None
     assert set(parts) == {"bus", "actors", "physics", "sensors"}
     assert all(value > 0 for value in parts.values())
     assert found["cycles"] > 50  # about 110 bus cycles a second
+
+
+def test_the_terminal_summary_lines_its_values_up() -> None:
+    from whexar.cli.sim import summary_text
+
+    summary = dict.fromkeys(SUMMARY_KEYS, 1.0) | {"state_hash": "ab" * 32, "falls": 0}
+    lines = summary_text("course", summary).splitlines()[1:]
+    assert len(lines) == len(SUMMARY_KEYS)
+    # Every value starts in one column, at least two spaces after the longest label.
+    starts = {len(line) - len(line.rstrip().split("  ")[-1].lstrip()) for line in lines}
+    assert len(starts) == 1
+    assert all("  " in line.strip() for line in lines)

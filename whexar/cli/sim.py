@@ -213,11 +213,12 @@ def summary_text(name: str, summary: dict[str, Any]) -> str:
     from whexar.sim.report import FIGURES, format_figure
 
     lines = [f"whexar sim: {name}"]
+    width = max(len(FIGURES[key][0]) for key in SUMMARY_KEYS) + 2  # the longest label, a gap
     for key in SUMMARY_KEYS:
         label = FIGURES[key][0]
         value = summary.get(key)
         shown = str(value) if key == "state_hash" else format_figure(key, value)
-        lines.append(f"  {label:<28}{shown}")
+        lines.append(f"  {label:<{width}}{shown}")
     return "\n".join(lines)
 
 
