@@ -176,3 +176,50 @@ def test_commands_and_keyboard_exclude_each_other(
         main(["run", str(wiring(tmp_path)), "--keyboard", "--commands", "x.jsonl"])
     assert exc.value.code == 2
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+def _run_args(graph: Path, config: Path | None, *sets: str) -> argparse.Namespace:
+    return argparse.Namespace(
+        graph=graph,
+        set=[assignment(s) for s in sets],
+        commands=None,
+        keyboard=False,
+        gamepad=None,
+        virtual=True,
+        config=config,
+    )
+
+
+def test_config_reaches_every_actor_that_reads_the_robot_configuration(tmp_path: Path) -> None:
+    from whexar.cli.run import load_run_graph
+
+    config = tmp_path / "robot.toml"
+    config.write_text("[imu]\naccel_offset_g = [0.01, 0.0, 0.0]\n")
+    walk = Path(__file__).resolve().parents[2] / "config" / "graphs" / "walk.toml"
+    other = tmp_path / "other.toml"
+    other.write_text("")
+    graph = load_run_graph(_run_args(walk, config, f"imu.config={other}"))
+    configured = {n.name for n in graph.actors if getattr(n.params, "config", None)}
+    legs = {f"leg-{leg}" for leg in ("RF", "LF", "RM", "LM", "RR", "LR")}
+    assert {"bus", "sensors", "coordinator", "commands", *legs} <= configured
+    for name in configured - {"imu"}:
+        assert str(graph.actor(name).params.config) == str(config)  # type: ignore[attr-defined]
+    assert str(graph.actor("imu").params.config) == str(other)  # type: ignore[attr-defined]
+
+
+def test_config_that_is_wrong_or_has_no_taker_is_named(tmp_path: Path) -> None:
+    from whexar.cli.run import load_run_graph
+
+    bad = tmp_path / "robot.toml"
+    bad.write_text("[imu]\naccel_offset_g = [0.0, 0.9, 0.0]\n")
+    walk = Path(__file__).resolve().parents[2] / "config" / "graphs" / "walk.toml"
+    with pytest.raises(ConfigError) as err:
+        load_run_graph(_run_args(walk, bad))
+    assert "imu.accel_offset_g" in str(err.value)
+    good = tmp_path / "good.toml"
+    good.write_text("")
+    small = tmp_path / "small.toml"
+    small.write_text(GRAPH.replace('name = "commands"', 'name = "cmd"'))
+    with pytest.raises(ConfigError) as err:
+        load_run_graph(_run_args(small, good))
+    assert "--config" in str(err.value)

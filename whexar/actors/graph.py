@@ -34,8 +34,9 @@ ROBOT_GRAPH: Final = GRAPH_DIR / "walk.toml"
 """The robot's graph."""
 EDGES: Final = {"bus": "port", "sensors": "port", "imu": "device", "commands": "source"}
 """The robot's edge actors and the parameter that names each one's device or front end."""
-_CONFIGURED: Final = ("bus", "sensors", "imu", "leg-*", "coordinator")
-"""The actors that read the robot configuration (their ``config`` parameter)."""
+CONFIGURED: Final = ("bus", "sensors", "imu", "leg-*", "coordinator", "commands")
+"""The robot graph's actors that read the robot configuration (their ``config``
+parameter), as shell patterns of their names."""
 
 _cache: dict[Path, dict[str, Any]] = {}
 
@@ -79,7 +80,7 @@ def robot_graph(
             set_param(doc, f"{actor}.{EDGES[actor]}", value, source=source, option=actor)
     if config is not None:
         for name in names:
-            if any(fnmatch.fnmatchcase(name, pattern) for pattern in _CONFIGURED):
+            if any(fnmatch.fnmatchcase(name, pattern) for pattern in CONFIGURED):
                 set_param(doc, f"{name}.config", str(config), source=source, option="config")
     for pattern, values in (params or {}).items():
         matched = [n for n in names if fnmatch.fnmatchcase(n, pattern)]

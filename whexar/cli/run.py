@@ -11,8 +11,10 @@ graph is built and checked (VALUE is read as a TOML value — ``3``, ``true``,
 ``--set commands.source=keyboard``, ``--gamepad [DEVICE]`` for
 ``--set commands.source=gamepad[:DEVICE]``: the graph's actor named ``commands`` (a
 :class:`~whexar.actors.commands.CommandSource`) then plays a command script,
-reads the keyboard or a gamepad. While the keyboard's status line is on the terminal, each
-event line first clears it; the actor redraws it at its next update.
+reads the keyboard or a gamepad. ``--config FILE`` gives every actor that reads
+the robot configuration that file (``--set ACTOR.config=FILE`` for each). While
+the keyboard's status line is on the terminal, each event line first clears it;
+the actor redraws it at its next update.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import contextlib
 import sys
 import textwrap
 import tomllib
+from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -123,6 +126,8 @@ def _stdin_is_a_terminal() -> bool:
 
 def load_run_graph(args: argparse.Namespace) -> Graph:
     """The wiring file of ``args.graph`` with the options' overrides, built and checked."""
+    from whexar.actors.graph import CONFIGURED
+    from whexar.config import load_config
     from whexar.runtime.schema import read_toml
     from whexar.runtime.wiring import build_graph, load_graph
 
@@ -139,7 +144,9 @@ def load_run_graph(args: argparse.Namespace) -> Graph:
             "(give --commands FILE for a run on virtual time)"
         )
     overrides = _overrides(args)
-    if not overrides:
+    if args.config is not None:
+        load_config(args.config)  # a bad file is named, key by key, before any actor starts
+    elif not overrides:
         return load_graph(args.graph)
     source = str(args.graph)
     data = read_toml(args.graph)
@@ -167,6 +174,22 @@ def load_run_graph(args: argparse.Namespace) -> Graph:
                 )
             ],
         )
+    if args.config is not None:
+        # Before the --set options, so that one of them can still change an actor's.
+        configured = [n for n in names if any(fnmatchcase(n, p) for p in CONFIGURED)]
+        if not configured:
+            raise ConfigError(
+                source,
+                [
+                    Problem(
+                        "--config",
+                        str(args.config),
+                        f"a graph with actors that read a robot configuration "
+                        f"({', '.join(CONFIGURED)}); its actors: {', '.join(names) or 'none'}",
+                    )
+                ],
+            )
+        overrides = [(f"{n}.config", str(args.config), "--config") for n in configured] + overrides
     for target, value, option in overrides:
         set_param(data, target, value, source=source, option=option)
     return build_graph(data, source=source)
@@ -310,6 +333,14 @@ def add_commands(commands: Commands) -> None:
         help="run on virtual time (idle time is skipped); give --duration",
     )
     run_cmd.add_argument("--quiet", action="store_true", help="do not print runtime events")
+    run_cmd.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the robot configuration every actor that reads one gets (the robot graph's "
+        "bus, sensors, imu, legs, coordinator, commands): --set ACTOR.config=FILE for each",
+    )
     run_cmd.add_argument(
         "--set",
         type=assignment,
