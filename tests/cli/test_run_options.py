@@ -223,3 +223,27 @@ def test_config_that_is_wrong_or_has_no_taker_is_named(tmp_path: Path) -> None:
     with pytest.raises(ConfigError) as err:
         load_run_graph(_run_args(small, good))
     assert "--config" in str(err.value)
+
+
+def test_run_gamepad_refuses_virtual_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    graph = wiring(tmp_path)
+    assert main(["run", str(graph), "--gamepad", "--virtual", "--duration", "1"]) == 2
+    assert "--gamepad reads a person's gamepad in real time" in capsys.readouterr().err
+
+
+def test_run_gamepad_sets_the_command_source(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from whexar.runtime.devices import DEVICES
+    from whexar.sensors.evdev_link import EVENT_PIPE, EventPipe
+
+    graph = wiring(tmp_path)
+    events = EventPipe()
+    argv = ["run", str(graph), "--gamepad", "pipe:pad", "--duration", "0.2", "--no-record"]
+    with DEVICES.registered(EVENT_PIPE, "pad", events):
+        assert main(argv) == 0
+    events.close()
+    out = capsys.readouterr().out
+    assert "GamepadLinkUp   link='pipe:pad', name=''" in out

@@ -29,7 +29,6 @@ from whexar.actors.messages import (
     GamepadLinkUp,
     MotionCommand,
 )
-from whexar.cli import main
 from whexar.config import GamepadSpec, RobotConfig, parse_config
 from whexar.config.gamepad import MODES as CONFIG_MODES
 from whexar.errors import ConfigError
@@ -701,44 +700,3 @@ def test_a_missing_device_path_says_why(tmp_path: Path) -> None:
 
     with pytest.raises(DeviceGoneError, match=r"cannot open .*event9: No such file or directory"):
         EventDevice.open(str(tmp_path / "event9"))
-
-
-# --------------------------------------------------------------------------- whexar run
-
-
-GRAPH = """
-[[actors]]
-name = "commands"
-class = "whexar.actors.commands:CommandSource"
-params = { source = "none" }
-outputs = { commands = "motion" }
-
-[[actors]]
-name = "sink"
-class = "whexar.testing:Sink"
-inputs = { inp = "motion" }
-
-[channels.motion]
-message = "MotionCommand"
-policy = "backpressure"
-"""
-
-
-def test_run_gamepad_refuses_virtual_time(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    path = tmp_path / "graph.toml"
-    path.write_text(GRAPH)
-    assert main(["run", str(path), "--gamepad", "--virtual", "--duration", "1"]) == 2
-    assert "--gamepad reads a person's gamepad in real time" in capsys.readouterr().err
-
-
-def test_run_gamepad_sets_the_command_source(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], pipe: EventPipe
-) -> None:
-    path = tmp_path / "graph.toml"
-    path.write_text(GRAPH)
-    argv = ["run", str(path), "--gamepad", "pipe:pad", "--duration", "0.2", "--no-record"]
-    assert main(argv) == 0
-    out = capsys.readouterr().out
-    assert "GamepadLinkUp   link='pipe:pad', name=''" in out
