@@ -1,0 +1,117 @@
+"""``whexar bench robot``: the CPU the whole controller takes, on real time, bus over a pty.
+
+The robot's graph (``config/graphs/walk.toml``: the bus scheduler, the sensor-board
+and IMU readers, six leg actors, the coordinator, a command source) runs on real
+time with its servo bus on a pseudo-terminal to ``whexar emulate`` in another
+process, as a U2D2 would carry it; the sensor board and the IMU are the graph's
+in-process emulators. It stands up, then walks the tripod gait. Measured after
+the stand-up, in the runtime's process (all threads), per completed bus cycle:
+
+* **core_pct** — process CPU time over wall time: the share of one core the
+  controller takes. Target ≤ 25 % here; a Raspberry Pi 4's core is about 3–4×
+  slower (issue "On the robot…", item 7).
+* **cpu_ms_per_cycle** — process CPU time per bus cycle (a ``ServoStates`` on
+  ``servo-state``), against the same 25 % of the cycle's period.
+* **cycle_hz** — bus cycles per second, against the bus limit's 98 % for the
+  graph's read plan: the controller must not slow the bus.
+
+The emulator's own process is not counted: on the robot the servos do that work.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from pathlib import Path
+from typing import Final
+
+from whexar.actors.graph import robot_graph
+from whexar.bench import Figure, Progress, Report
+from whexar.bench.bus import emulator_process, plan_limit
+from whexar.bus.emulator.timing import TimingModel
+from whexar.bus.plan import PRESETS
+from whexar.config import RobotConfig
+from whexar.runtime.clock import run as run_loop
+from whexar.runtime.supervisor import Runtime
+from whexar.runtime.wiring import build_graph
+
+CORE_TARGET_PCT: Final = 25.0
+"""The controller's share of one core here (item 7: a Pi 4 core is 3–4× slower)."""
+STAND_S: Final = 4.0
+"""Start-up and stand-up before the measurement (the stand-up takes about 2.4 s)."""
+WALK_SPEED_M_S: Final = 0.1
+SHARE_OF_LIMIT: Final = 0.98
+"""The bus cycle rate must stay within 2 % of its limit (as ``whexar bench bus``)."""
+
+
+def measure(seconds: float = 10.0) -> tuple[float, float, float, int]:
+    """(core_pct, cpu_ms_per_cycle, cycle_hz, cycles) of ``seconds`` of walking."""
+    marks: list[tuple[float, float]] = []
+
+    def observe(channel: str, msg: object) -> None:
+        if channel == "servo-state":
+            marks.append((time.perf_counter(), time.process_time()))
+
+    with tempfile.TemporaryDirectory() as folder, emulator_process() as pty:
+        script = Path(folder) / "walk.jsonl"
+        lines = [{"t": STAND_S, "gait": "tripod", "vx_m_s": WALK_SPEED_M_S}]
+        script.write_text("".join(json.dumps(line) + "\n" for line in lines))
+        doc = robot_graph(bus=pty, commands=str(script))
+
+        async def main() -> None:
+            runtime = Runtime(build_graph(doc, source="bench robot"), observer=observe)
+            await runtime.run(duration=STAND_S + seconds)
+
+        run_loop(main)
+    kept = [m for m in marks if m[0] >= marks[0][0] + STAND_S] if marks else []
+    if len(kept) < 2:
+        return (float("inf"), float("inf"), 0.0, 0)
+    (t0, c0), (t1, c1) = kept[0], kept[-1]
+    cycles = len(kept) - 1
+    return ((c1 - c0) / (t1 - t0) * 100, (c1 - c0) / cycles * 1e3, cycles / (t1 - t0), cycles)
+
+
+def run(progress: Progress = None, *, seconds: float = 10.0) -> Report:
+    """Measure the robot's graph; ``progress`` receives a line per step."""
+    say = progress or (lambda _line: None)
+    say(
+        f"the robot's graph on real time, bus over a pty to `whexar emulate`: "
+        f"{STAND_S:g} s to stand, {seconds:g} s of tripod walking…"
+    )
+    core, per_cycle, hz, cycles = measure(seconds)
+    cfg = RobotConfig()
+    (bus,) = (a for a in robot_graph()["actors"] if a["name"] == "bus")
+    plan = str(bus["params"].get("plan", "default"))
+    limit_hz, _ = plan_limit(PRESETS[plan], cfg, TimingModel(baudrate=cfg.bus.baudrate))
+    period_ms = 1e3 / hz if hz > 0 else float("inf")
+    return Report(
+        "robot",
+        [
+            Figure("core_pct", "share of one core", core, "%", CORE_TARGET_PCT),
+            Figure(
+                "cpu_ms_per_cycle",
+                "process CPU per bus cycle",
+                per_cycle,
+                "ms",
+                CORE_TARGET_PCT / 100 * period_ms,
+            ),
+            Figure(
+                "cycle_hz",
+                f"bus cycles ({plan} plan, limit {limit_hz:.1f} Hz)",
+                hz,
+                "Hz",
+                SHARE_OF_LIMIT * limit_hz,
+                at_least=True,
+            ),
+        ],
+        notes=[
+            f"{cycles} cycles over {seconds:g} s of walking after {STAND_S:g} s of stand-up; "
+            "CPU is this process's (all threads); the emulator's process is not counted.",
+            "A Raspberry Pi 4 core is about 3-4x slower than this machine's: 25 % here is "
+            "most of a Pi core.",
+        ],
+    )
+
+
+__all__ = ["CORE_TARGET_PCT", "measure", "run"]
