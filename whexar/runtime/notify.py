@@ -150,8 +150,10 @@ class Notifier:
         address = env.get(NOTIFY_SOCKET, "")
         self.address: str | None = None
         self.failures = 0
-        self.sent: list[str] = []
-        """What went out, in order (for the run's own report)."""
+        self.sent = 0
+        """Datagrams that went out (a count: a service runs for days)."""
+        self.last: str | None = None
+        """The last datagram that went out."""
         self._sock: socket.socket | None = None
         if not address or address[0] not in "/@":  # vsock addresses are not for us
             return
@@ -173,7 +175,8 @@ class Notifier:
         except OSError:  # the socket gone or full: systemd will notice the silence itself
             self.failures += 1
             return False
-        self.sent.append(text)
+        self.sent += 1
+        self.last = text
         return True
 
     def close(self) -> None:
