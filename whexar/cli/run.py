@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
 import textwrap
 import tomllib
@@ -39,6 +40,7 @@ from whexar.cli.common import (
 )
 from whexar.errors import ConfigError, Problem, UsageError
 from whexar.runtime.messages import ActorFailed, Message
+from whexar.runtime.notify import Notifier, ServiceNotes, service_observer, watchdog_period_s
 from whexar.runtime.wiring import EVENTS_CHANNEL, actor_names, set_param
 
 if TYPE_CHECKING:
@@ -215,6 +217,12 @@ def _run(args: argparse.Namespace) -> int:
         print(f"live view: {live.url} (Foxglove: open a WebSocket connection)", flush=True)
     recorder = None if args.no_record and live is None else _recorder(args, graph, live)
     observers: list[Observer] = [o for o in (printer, recorder) if o is not None]
+    notifier = Notifier()
+    if notifier.enabled:  # under systemd: READY, WATCHDOG from the cycles, STOPPING
+        # The run's clock, read when a message is published (the runtime exists by then).
+        observers.append(
+            service_observer(_service_notes(graph), notifier, lambda: runtime.clock.now())
+        )
     runtime = Runtime(
         graph,
         handle_signals=True,
@@ -251,6 +259,7 @@ def _run(args: argparse.Namespace) -> int:
                 print(f"recording: {recorder.path}{stopped}", flush=True)
         if live is not None:
             live.close()
+        notifier.close()
     print(f"stopped: {runtime.stop_reason}", flush=True)
     if not args.quiet:
         for stats in runtime.stats():
@@ -263,12 +272,25 @@ def _run(args: argparse.Namespace) -> int:
     return code
 
 
+def _service_notes(graph: Graph) -> ServiceNotes:
+    """What to tell systemd for ``graph``: progress is the bus scheduler's cycles (each
+    publishes :class:`~whexar.actors.messages.ServoStates`); a graph without a servo bus
+    (a demonstration) counts any message but the runtime's events."""
+    from whexar.actors.messages import ServoStates
+    from whexar.runtime.messages import Message
+
+    bus = any(issubclass(ch.message_type, ServoStates) for ch in graph.channels.values())
+    return ServiceNotes(
+        actors=frozenset(node.name for node in graph.actors),
+        watchdog_s=watchdog_period_s(os.environ, os.getpid()),
+        progress=(ServoStates,) if bus else (Message,),
+    )
+
+
 def _recorder(args: argparse.Namespace, graph: Graph, live: LiveView | None) -> AnyRecorder:
     """The run's recorder: the wiring file and the robot configuration attached, the
     command line in its metadata; it feeds the live view, and records to nowhere with
     ``--no-record``."""
-    import os
-
     from whexar.record.runs import run_recorder
 
     if args.no_record:
