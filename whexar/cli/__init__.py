@@ -12,6 +12,7 @@
 * :mod:`~whexar.cli.log` — ``whexar log info | recover``: recordings;
 * :mod:`~whexar.cli.plot` — ``whexar plot``: plots from a recording;
 * :mod:`~whexar.cli.replay` — ``whexar replay``: a recording played back, and checked;
+* :mod:`~whexar.cli.doctor` — ``whexar doctor``: is the robot ready;
 * :mod:`~whexar.cli.common` — what they share;
 * :mod:`~whexar.cli.extras` — which extra a missing module comes with.
 
@@ -40,6 +41,7 @@ from whexar.cli import (
     bus,
     campaign,
     config,
+    doctor,
     kin,
     log,
     model,
@@ -63,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for group in (config, kin, bench, run, bus, sensors, model, sim, campaign, log, plot, replay):
         group.add_commands(commands)
+    doctor.add_commands(commands)
     return parser
 
 
