@@ -22,9 +22,9 @@ top layer: it may import every other package of whexar.
 
 Exit codes: 0 success; 1 a configuration with problems, a benchmark that
 missed its target, a bus scan that found no servo (or could not open its
-port), a replay that diverged from its recording, or a command that needs an
-extra the install left out (:mod:`~whexar.cli.extras`); 2 bad input (an unknown
-leg, an unreachable target, a malformed option); 3 ``whexar run`` stopped
+port), a replay that diverged from its recording, a doctor with a failed check,
+or a command that needs an extra the install left out (:mod:`~whexar.cli.extras`);
+2 bad input (an unknown leg, an unreachable target, a malformed option); 3 ``whexar run`` stopped
 after an actor was escalated.
 """
 
