@@ -35,6 +35,7 @@ from whexar.bench import kin as kin_bench
 from whexar.bench import median_seconds
 from whexar.bench import record as record_bench
 from whexar.bench import replay as replay_bench
+from whexar.bench import robot as robot_bench
 from whexar.bench import runtime as runtime_bench
 from whexar.bench import sensors as sensors_bench
 from whexar.bench import sim as sim_bench
@@ -410,6 +411,21 @@ def test_bench_campaign(
     )
     monkeypatch.setattr(campaign_bench, "RAY_RUNS", 2)
     run_json(["bench", "campaign", "--json"], capsys)
+
+
+@covers("bench", "robot")
+@pytest.mark.slow
+def test_bench_robot(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(robot_bench, "run", functools.partial(robot_bench.run, seconds=0.5))
+    run_json(["bench", "robot", "--json"], capsys)
+
+
+@covers("doctor")
+def test_doctor(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    # No servo port: a verdict of not ready, in strict JSON all the same.
+    code, doc = run_json(["doctor", "--json", "--port", str(tmp_path / "ttyUSB9")], capsys)
+    assert code == 1
+    assert doc["ready"] is False
 
 
 @covers("bus", "scan")

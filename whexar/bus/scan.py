@@ -24,7 +24,7 @@ from typing import Any, Final
 from whexar.bus.control_table import HardwareError, model_name
 from whexar.errors import DeviceGoneError, UsageError
 
-__all__ = ["BAUDRATES", "CONFIRM_ATTEMPTS", "ScanResult", "scan"]
+__all__ = ["BAUDRATES", "CONFIRM_ATTEMPTS", "ScanResult", "scan", "scan_port"]
 
 BAUDRATES: Final = (
     9600,
@@ -107,6 +107,14 @@ def scan(
     finally:
         if port.is_open:
             port.closePort()
+
+
+def scan_port(port: Any, ids: Iterable[int] = range(0, 253)) -> list[ScanResult]:
+    """As :func:`scan`, on a port already open at its rate (a ``PortHandler``, an
+    :class:`~whexar.bus.emulator.port.EmulatedPort`); port errors propagate as ``OSError``."""
+    import dynamixel_sdk as dxl
+
+    return _scan(port, dxl.PacketHandler(2.0), sorted({int(i) for i in ids}))
 
 
 def _reason(exc: OSError) -> str:

@@ -13,6 +13,7 @@
 * :mod:`~whexar.cli.plot` — ``whexar plot``: plots from a recording;
 * :mod:`~whexar.cli.replay` — ``whexar replay``: a recording played back, and checked;
 * :mod:`~whexar.cli.service` — ``whexar service install | status | logs``: systemd;
+* :mod:`~whexar.cli.doctor` — ``whexar doctor``: is the robot ready;
 * :mod:`~whexar.cli.common` — what they share;
 * :mod:`~whexar.cli.extras` — which extra a missing module comes with.
 
@@ -22,9 +23,9 @@ top layer: it may import every other package of whexar.
 
 Exit codes: 0 success; 1 a configuration with problems, a benchmark that
 missed its target, a bus scan that found no servo (or could not open its
-port), a replay that diverged from its recording, or a command that needs an
-extra the install left out (:mod:`~whexar.cli.extras`); 2 bad input (an unknown
-leg, an unreachable target, a malformed option); 3 ``whexar run`` stopped
+port), a replay that diverged from its recording, a doctor with a failed check,
+or a command that needs an extra the install left out (:mod:`~whexar.cli.extras`);
+2 bad input (an unknown leg, an unreachable target, a malformed option); 3 ``whexar run`` stopped
 after an actor was escalated.
 """
 
@@ -41,6 +42,7 @@ from whexar.cli import (
     bus,
     campaign,
     config,
+    doctor,
     kin,
     log,
     model,
@@ -66,6 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
     for group in (config, kin, bench, run, bus, sensors, model, sim, campaign, log, plot, replay):
         group.add_commands(commands)
     service.add_commands(commands)
+    doctor.add_commands(commands)
     return parser
 
 
