@@ -3,12 +3,27 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from whexar.cli.common import Commands, print_json
 
+if TYPE_CHECKING:
+    from whexar.sensors.imu_emulator import FakeSMBus
+
 MARKS = {"ok": "✓", "warn": "!", "fail": "✗", "skipped": "-"}
 """One mark per status at the start of a check's line."""
+
+
+def _fake_i2c(number: int, address: int) -> FakeSMBus:
+    """An emulated LSM9DS1 on bus ``number`` at ``address``: the IMU ``whexar run`` and
+    ``whexar sim`` use when no robot is there (``imu.device = "fake"``)."""
+    from whexar.sensors.imu_emulator import FakeLsm9ds1, FakeSMBus
+
+    bus = FakeSMBus(number)
+    bus.attach(address, FakeLsm9ds1())
+    return bus
 
 
 def _doctor(args: argparse.Namespace) -> int:
@@ -16,7 +31,10 @@ def _doctor(args: argparse.Namespace) -> int:
     from whexar.doctor import Environment, ready, run_checks
 
     cfg = RobotConfig() if args.config is None else load_config(args.config)
-    results = run_checks(Environment(config=cfg, port=args.port))
+    env = Environment(config=cfg, port=args.port)
+    if args.imu == "fake":
+        env = replace(env, open_i2c=lambda number: _fake_i2c(number, cfg.imu.address))
+    results = run_checks(env)
     if args.json:
         print_json({"ready": ready(results), "checks": [r.as_dict() for r in results]})
     else:
@@ -48,6 +66,13 @@ def add_commands(commands: Commands) -> None:
     )
     doctor.add_argument(
         "--port", default=None, metavar="DEVICE", help="servo port (default: [bus] port)"
+    )
+    doctor.add_argument(
+        "--imu",
+        choices=("i2c", "fake"),
+        default="i2c",
+        help="the IMU to check: the real /dev/i2c-N (default), or the emulated LSM9DS1 "
+        "(with whexar emulate, to check a setup without a robot)",
     )
     doctor.add_argument("--json", action="store_true", help="print one JSON object")
     doctor.set_defaults(handler=_doctor)
