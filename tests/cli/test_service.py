@@ -167,3 +167,20 @@ def test_status_says_so_where_systemd_is_not_the_init_system(
     assert "systemd is not running here" in capsys.readouterr().err
     monkeypatch.setattr(service, "SYSTEMD_BOOTED", tmp_path)
     assert main(["service", "status"]) == 0  # the fake systemctl's answer, passed on
+
+
+def test_install_passes_a_checked_configuration_on(tmp_path: Path) -> None:
+    dest = tmp_path / "units"
+    config = tmp_path / "robot.toml"
+    config.write_text("[imu]\naccel_offset_g = [0.01, 0.0, 0.0]\n")
+    args = ["service", "install", str(BUS), "--dest", str(dest), "--user", me()]
+    assert main([*args, "--config", str(config)]) == 0
+    exec_start = next(
+        line for line in (dest / UNIT).read_text().splitlines() if line.startswith("ExecStart=")
+    )
+    words = shlex.split(exec_start.removeprefix("ExecStart="))
+    assert words[words.index("--config") + 1] == str(config.resolve())
+    config.write_text("[imu]\naccel_offset_g = [0.0, 0.0, 0.5]\n")
+    (dest / UNIT).unlink()
+    assert main([*args, "--config", str(config)]) == 1  # named now, not at the next boot
+    assert not (dest / UNIT).exists()

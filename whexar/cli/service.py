@@ -109,6 +109,12 @@ def _install(args: argparse.Namespace) -> int:
         raise UsageError(f"--user {user}: no such user on this host") from None
     groups, missing = _existing_groups(GROUPS)
     run_args = ["run", str(graph)]
+    if args.config is not None:
+        from whexar.config import load_config
+
+        config: Path = args.config.resolve()
+        load_config(config)  # a bad file is named now, not at the next boot
+        run_args += ["--config", str(config)]
     for value in args.set:
         run_args += ["--set", value]
     exec_start = shlex.join([sys.executable, "-m", "whexar.cli", *run_args])
@@ -213,6 +219,13 @@ def add_commands(commands: Commands) -> None:
         default=SYSTEM_UNITS,
         metavar="DIR",
         help=f"folder to write {UNIT} into (default: {SYSTEM_UNITS})",
+    )
+    install.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="the robot configuration, passed to whexar run --config (checked now)",
     )
     install.add_argument(
         "--set",
