@@ -410,6 +410,36 @@ def test_no_i2c_bus_fails_with_how_to_enable_it(env: Environment) -> None:
     assert got.fix.startswith("sudo raspi-config nonint do_i2c 0")
 
 
+def _imu_reading(accel_g: tuple[float, float, float], gyro_dps: tuple[float, float, float]) -> Any:
+    bus = FakeSMBus(1)
+    bus.attach(0x6B, FakeLsm9ds1(accel_g=accel_g, gyro_dps=gyro_dps))
+    return bus
+
+
+def test_the_imu_at_rest_gives_its_calibration(env: Environment) -> None:
+    # An uncalibrated chip, 50 mg off in X and 30 mg in Z, still: the line to put in [imu].
+    got = results(replace(env, open_i2c=lambda n: _imu_reading((0.05, 0.0, 1.03), (0, 0, 0))))
+    imu = got["imu"]
+    assert imu.status is Status.OK
+    assert "accel_offset_g = [0.050, 0.000, 0.030]" in imu.details[1]
+    # Calibrated by the configuration, the same chip reads level.
+    cfg = parse_config({"imu": {"accel_offset_g": [0.05, 0.0, 0.03]}})
+    calibrated = results(
+        replace(env, config=cfg, open_i2c=lambda n: _imu_reading((0.05, 0.0, 1.03), (0, 0, 0)))
+    )["imu"]
+    assert "(+0.000, +0.000, +1.000) g" in calibrated.details[0]
+    assert "accel_offset_g = [0.050, 0.000, 0.030]" in calibrated.details[1]
+
+
+def test_a_gyroscope_that_turns_at_rest_is_a_warning(env: Environment) -> None:
+    got = results(replace(env, open_i2c=lambda n: _imu_reading((0, 0, 1), (25.0, -3.0, 1.0))))
+    imu = got["imu"]
+    assert imu.status is Status.WARN
+    assert "25.0 dps at rest" in imu.summary
+    assert "gyro_offset_dps = [25.00, -3.00, 1.00]" in imu.details[1]
+    assert ready(list(got.values()))  # a warning: the robot can still run
+
+
 def test_a_disabled_imu_is_skipped(env: Environment) -> None:
     cfg = parse_config({"imu": {"enabled": False}})
     got = results(replace(env, config=cfg, open_i2c=lambda n: fake_imu(address=0x6A)))

@@ -6,11 +6,15 @@ The sensor board (protocol and frame rate over its serial line) has no check yet
 from __future__ import annotations
 
 import contextlib
+import time
+from typing import Final
 
+from whexar.config import ImuSpec
 from whexar.doctor.environment import Environment
-from whexar.doctor.report import CheckResult, Findings, fail, ok, skipped
-from whexar.errors import DeviceGoneError
+from whexar.doctor.report import CheckResult, Findings, Status, fail, ok, skipped, warn
+from whexar.errors import DeviceGoneError, WhexarError
 from whexar.sensors import lsm9ds1 as chip
+from whexar.sensors.lsm9ds1 import I2CBus
 
 EREMOTEIO = 121
 """Linux's errno when nothing acknowledges an I²C address ("Remote I/O error")."""
@@ -33,6 +37,7 @@ def check_imu(env: Environment, found: Findings) -> CheckResult:
         return fail(name, f"cannot open /dev/i2c-{spec.i2c_bus}: {exc}", ENABLE_I2C)
     try:
         who = bus.read_byte_data(spec.address, chip.WHO_AM_I)
+        rest = _at_rest(bus, spec.address, spec) if who == chip.WHO_AM_I_VALUE else None
     except OSError as exc:
         if exc.errno == EREMOTEIO:
             other = chip.ADDRESS_ALT if spec.address == chip.ADDRESS else chip.ADDRESS
@@ -54,4 +59,66 @@ def check_imu(env: Environment, found: Findings) -> CheckResult:
             f"0x{chip.WHO_AM_I_VALUE:02X}: another chip is at that address",
             f"set [imu] address to the LSM9DS1's (i2cdetect -y {spec.i2c_bus} lists what answers)",
         )
-    return ok(name, f"LSM9DS1 answers at {where}")
+    summary = f"LSM9DS1 answers at {where}"
+    if rest is None:
+        return ok(name, summary)
+    accel, gyro = rest
+    raw_a = tuple(a + o for a, o in zip(accel, spec.accel_offset_g, strict=True))
+    raw_g = tuple(g + o for g, o in zip(gyro, spec.gyro_offset_dps, strict=True))
+    level = (raw_a[0], raw_a[1], raw_a[2] - 1.0)
+    details = (
+        f"at rest, calibrated: {_xyz(accel, 'g', 3)}, {_xyz(gyro, 'dps', 2)}",
+        f"on level ground its calibration would be: accel_offset_g = [{_list(level, 3)}], "
+        f"gyro_offset_dps = [{_list(raw_g, 2)}]",
+    )
+    drift = max(abs(g) for g in gyro)
+    if drift > GYRO_AT_REST_DPS:
+        return warn(
+            name,
+            f"{summary}; its gyroscope reads {drift:.1f} dps at rest: not calibrated",
+            "with the robot still, put the gyro_offset_dps above into [imu]",
+            details,
+        )
+    return CheckResult(name, Status.OK, summary, None, details)
+
+
+GYRO_AT_REST_DPS: Final = 3.0
+"""A calibrated gyroscope at rest reads within this of zero; the LSM9DS1's uncalibrated
+zero-rate level is typically ±30 dps (datasheet Table 3)."""
+REST_SAMPLES: Final = 25
+"""Samples averaged for the resting reading (half a second at the default 50 Hz)."""
+
+
+def _at_rest(
+    bus: I2CBus, address: int, spec: ImuSpec
+) -> tuple[tuple[float, float, float], tuple[float, float, float]] | None:
+    """The mean calibrated acceleration (g) and rate (dps) of :data:`REST_SAMPLES` new
+    samples, ``None`` when the chip gave none (its configuration did not hold)."""
+    driver = chip.Lsm9ds1(bus, address)
+    try:
+        driver.configure(spec.rate_hz, spec.accel_range_g, spec.gyro_range_dps)
+    except WhexarError:
+        return None
+    calibration = chip.Calibration(spec.accel_offset_g, spec.gyro_offset_dps)
+    got: list[chip.Reading] = []
+    deadline = time.monotonic() + 2.0
+    while len(got) < REST_SAMPLES and time.monotonic() < deadline:
+        reading = driver.read()
+        if reading.new:
+            got.append(calibration.apply(reading))
+        else:
+            time.sleep(0.005)
+    if not got:
+        return None
+    n = len(got)
+    a = tuple(sum(r.accel_g[i] for r in got) / n for i in range(3))
+    g = tuple(sum(r.gyro_dps[i] for r in got) / n for i in range(3))
+    return (a[0], a[1], a[2]), (g[0], g[1], g[2])
+
+
+def _xyz(v: tuple[float, ...], unit: str, digits: int) -> str:
+    return "(" + ", ".join(f"{x:+.{digits}f}" for x in v) + f") {unit}"
+
+
+def _list(v: tuple[float, ...], digits: int) -> str:
+    return ", ".join(f"{x:.{digits}f}" for x in v)
