@@ -6,7 +6,10 @@ Three families, as h11 and httpcore separate them:
   configuration, a NaN coordinate, an unreachable foot target). Fix the input.
 * :class:`DeviceError` — a device answered wrongly (bad CRC, an error bit in a
   status packet, a corrupted sensor frame). The runtime turns these into events.
-* :class:`DeviceGoneError` — a device stopped answering or its port vanished.
+* :class:`DeviceGoneError` — a device stopped answering or its port vanished;
+  :class:`PortUnavailableError` — a port missing, busy or not permitted when a
+  run starts (:class:`~whexar.runtime.errors.DeviceUnavailableError`: the runtime
+  stops instead of restarting, and prints no traceback).
 
 The root of the tree (:class:`WhexarError`, :class:`UsageError`,
 :class:`ConfigError` and its :class:`Problem` list) belongs to the actor
@@ -18,15 +21,24 @@ project.
 
 from __future__ import annotations
 
-from whexar.runtime.errors import MISSING, ConfigError, Problem, UsageError, WhexarError
+from whexar.runtime.errors import (
+    MISSING,
+    ConfigError,
+    DeviceUnavailableError,
+    Problem,
+    UsageError,
+    WhexarError,
+)
 
 __all__ = [
     "MISSING",
     "ConfigError",
     "DeviceError",
     "DeviceGoneError",
+    "DeviceUnavailableError",
     "JointLimitError",
     "KinematicsError",
+    "PortUnavailableError",
     "Problem",
     "UnreachableError",
     "UsageError",
@@ -40,6 +52,10 @@ class DeviceError(WhexarError):
 
 class DeviceGoneError(WhexarError):
     """A device or its port stopped answering."""
+
+
+class PortUnavailableError(DeviceGoneError, DeviceUnavailableError):
+    """A port that cannot be opened at start: absent, busy or not permitted."""
 
 
 class KinematicsError(UsageError):

@@ -380,3 +380,20 @@ def test_a_second_sigint_is_heard_while_a_cleanup_blocks_the_loop(tmp_path: Path
     assert code == EXIT_INTERRUPTED, err
     assert elapsed < 3 * STOP_TIMEOUT_S + EXIT_GRACE_S + SLACK_S
     assert "the stop overran its bound" in err
+
+
+def test_a_missing_servo_port_is_one_line_and_no_restart(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    walk = Path(__file__).resolve().parents[2] / "config" / "graphs" / "walk.toml"
+    port = tmp_path / "ttyUSB7"
+    argv = ["run", str(walk), "--set", f"bus.port={port}", "--duration", "5", "--no-record"]
+    assert main(argv) == 4
+    out = capsys.readouterr().out
+    assert "Traceback" not in out
+    assert "ActorRestarted" not in out
+    (failed,) = [line for line in out.splitlines() if "ActorFailed" in line]
+    assert f"servo port {port}: no such device" in failed
+    (stopped,) = [line for line in out.splitlines() if line.startswith("stopped:")]
+    assert stopped.startswith("stopped: device unavailable: actor 'bus'")
+    assert f"whexar doctor --port {port}" in stopped

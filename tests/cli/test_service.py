@@ -59,10 +59,11 @@ def test_run_says_ready_feeds_the_watchdog_and_says_stopping_on_sigterm() -> Non
     assert texts[0] == "READY=1\nSTATUS=running: 4 actors ready"
     assert texts[1:4] == ["WATCHDOG=1"] * 3
     assert texts[4] == "STOPPING=1\nSTATUS=stopping: signal SIGTERM"
-    # Never faster than half the period (the client's rule); well within the period
-    # (systemd's), with room for a busy machine. Times are when the test read them.
-    gaps = [b - a for (a, _), (b, _) in itertools.pairwise(got[:4])]
-    assert all(WATCHDOG_S / 2 - 0.05 <= gap < WATCHDOG_S for gap in gaps), gaps
+    # Within the period (systemd's rule), and not a stream. Times are when the test read
+    # them, so on a busy machine a late read shortens the next gap: the half-period rule
+    # itself is tested on virtual time (tests/runtime/test_notify.py).
+    gaps = [b - a for (a, _), (b, _) in itertools.pairwise(got[1:4])]
+    assert all(WATCHDOG_S / 4 <= gap < WATCHDOG_S for gap in gaps), gaps
     assert proc.returncode == 0, err.decode()
     assert "stopped: signal SIGTERM" in out.decode()
 
@@ -103,7 +104,7 @@ def test_install_writes_the_unit_for_this_install(
         "NotifyAccess=main",
         "WatchdogSec=2",
         "Restart=on-failure",
-        "RestartPreventExitStatus=1 2",
+        "RestartPreventExitStatus=1 2 4",
         "StartLimitBurst=3",
         "KillSignal=SIGTERM",
         f"User={me()}",

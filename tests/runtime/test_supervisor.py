@@ -22,6 +22,7 @@ import pytest
 
 from whexar.runtime.actor import Actor, ActorParams
 from whexar.runtime.clock import run
+from whexar.runtime.errors import DeviceUnavailableError
 from whexar.runtime.messages import (
     ActorEscalated,
     ActorFailed,
@@ -35,7 +36,13 @@ from whexar.runtime.messages import (
     StopRequested,
     message,
 )
-from whexar.runtime.supervisor import EXIT_CLEAN, EXIT_ESCALATED, Runtime, describe
+from whexar.runtime.supervisor import (
+    EXIT_CLEAN,
+    EXIT_ESCALATED,
+    EXIT_UNAVAILABLE,
+    Runtime,
+    describe,
+)
 from whexar.runtime.wiring import build_graph
 from whexar.testing import Harness, MessageLog, RunResult, run_actors
 
@@ -101,6 +108,21 @@ class FailsOnStop(Actor):
             await anyio.sleep_forever()
         finally:
             raise OSError("port already gone")
+
+
+class Unplugged(Actor):
+    """Its device is missing at start (after ready: it was unplugged while running)."""
+
+    class Params(ActorParams):
+        after_ready: bool = False
+
+    params: Params
+
+    async def run(self) -> None:
+        if self.params.after_ready:
+            self.ready()
+            await self.clock.sleep(0.25)
+        raise DeviceUnavailableError("servo port /dev/ttyUSB7: no such device")
 
 
 def here(cls: type[Actor]) -> str:
@@ -269,6 +291,35 @@ def test_restart_then_escalation() -> None:
         "ActorStopped",
         "ActorStopped",
     ]
+
+
+def test_a_device_unavailable_at_start_stops_the_run_without_restarts() -> None:
+    result = run_actors(
+        graph(actor("first"), actor("bus", here(Unplugged)), actor("last"), restart=RESTART),
+        duration=5.0,
+    )
+    (failed,) = result.events(ActorFailed)
+    assert (failed.actor, failed.phase, failed.traceback) == ("bus", "start", "")
+    assert "no such device" in failed.error
+    assert not result.events(ActorRestarted)
+    assert not result.events(ActorEscalated)
+    assert result.exit_code == EXIT_UNAVAILABLE == 4
+    assert result.stop_reason == (
+        "device unavailable: actor 'bus': servo port /dev/ttyUSB7: no such device"
+    )
+    # The run stops where it is: the actor after the missing device never starts.
+    assert [e.actor for e in result.events(ActorStarting)] == ["first", "bus"]
+
+
+def test_a_device_lost_while_running_is_restarted_as_any_failure() -> None:
+    result = run_actors(
+        graph(actor("bus", here(Unplugged), after_ready=True), restart=RESTART), duration=5.0
+    )
+    failed = result.events(ActorFailed)
+    assert len(failed) == 3  # the restart policy's, then escalation
+    assert failed[0].phase == "run"
+    assert failed[0].traceback  # after ready, the runtime cannot tell it from a bug
+    assert result.exit_code == EXIT_ESCALATED
 
 
 def test_an_actor_that_heals_is_not_escalated() -> None:

@@ -61,7 +61,7 @@ from dynamixel_sdk.protocol2_packet_handler import TXPACKET_MAX_LEN, Protocol2Pa
 
 from whexar.bus.control_table import Register
 from whexar.bus.protocol import ALERT, crc16
-from whexar.errors import DeviceGoneError
+from whexar.errors import DeviceGoneError, PortUnavailableError
 from whexar.runtime.channels import LinkTap
 from whexar.runtime.clock import Clock, monotonic
 
@@ -659,8 +659,23 @@ def open_port(name: str, baudrate: int) -> Any:
         if not port.setBaudRate(baudrate):
             raise DeviceGoneError(f"servo port {name}: baud rate {baudrate} refused")
     except OSError as exc:
+        why = UNAVAILABLE.get(exc.errno or 0)
+        if why is not None:
+            raise PortUnavailableError(
+                f"servo port {name}: {why}; `whexar doctor --port {name}` says how to fix it"
+            ) from exc
         raise DeviceGoneError(f"servo port {name}: {exc}") from exc
     return port
+
+
+UNAVAILABLE: Final = {
+    errno.ENOENT: "no such device (is the adapter plugged in?)",
+    errno.ENODEV: "no such device (is the adapter plugged in?)",
+    errno.EACCES: "permission denied (are you in its group, dialout?)",
+    errno.EPERM: "permission denied (are you in its group, dialout?)",
+    errno.EBUSY: "busy: another program has it open",
+}
+"""Why a port cannot be opened, by errno, where no restart can help."""
 
 
 def latency_timer_ms(

@@ -26,7 +26,8 @@ missed its target, a bus scan that found no servo (or could not open its
 port), a replay that diverged from its recording, a doctor with a failed check,
 or a command that needs an extra the install left out (:mod:`~whexar.cli.extras`);
 2 bad input (an unknown leg, an unreachable target, a malformed option); 3 ``whexar run`` stopped
-after an actor was escalated.
+after an actor was escalated; 4 ``whexar run`` stopped because a device was missing, busy
+or not permitted when its actor started (``whexar doctor`` says how to fix it).
 """
 
 from __future__ import annotations

@@ -343,7 +343,9 @@ def add_commands(commands: Commands) -> None:
         "stop_timeout_s; a second SIGINT runs the safe stop and exits at once (status 130). "
         "Prints every runtime event, and the traceback of every failure. Exit status 0 after "
         "a clean stop, 3 after an escalation, 1 if the wiring has problems, 2 if virtual time "
-        "refused real I/O (allow it with [runtime] real_io_on_virtual_time = true).",
+        "refused real I/O (allow it with [runtime] real_io_on_virtual_time = true), 4 if a "
+        "device was missing, busy or not permitted at start (no restart; whexar doctor says "
+        "how to fix it).",
     )
     run_cmd.add_argument("graph", type=Path, help="wiring file, e.g. config/graphs/demo.toml")
     run_cmd.add_argument(

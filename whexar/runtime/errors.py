@@ -23,6 +23,13 @@ class WhexarError(Exception):
     """Base of every error whexar raises on purpose."""
 
 
+class DeviceUnavailableError(WhexarError):
+    """A device the run needs is missing, busy or not permitted, found at an actor's
+    start: no restart helps until someone plugs it in, frees it or grants access, and
+    the message says which and how. The runtime stops the run instead of restarting the
+    actor, without a traceback (tracebacks are for bugs)."""
+
+
 class UsageError(WhexarError, ValueError):
     """The caller's input is wrong; the message names the offending value."""
 

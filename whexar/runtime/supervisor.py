@@ -86,7 +86,7 @@ from whexar.runtime.channels import (
     Turn,
 )
 from whexar.runtime.clock import Clock, VirtualTimeRealIOError, WallAlarm
-from whexar.runtime.errors import UsageError
+from whexar.runtime.errors import DeviceUnavailableError, UsageError
 from whexar.runtime.messages import (
     ActorEscalated,
     ActorFailed,
@@ -106,6 +106,9 @@ EXIT_REFUSED: Final = 2
 """Process exit status of a refused run (real I/O on virtual time): the CLI's bad input."""
 EXIT_ESCALATED: Final = 3
 """Process exit status after an actor was escalated (1 and 2 are the CLI's input errors)."""
+EXIT_UNAVAILABLE: Final = 4
+"""Process exit status when a device was missing, busy or not permitted at an actor's
+start (:class:`~whexar.runtime.errors.DeviceUnavailableError`): the run stopped, no restart."""
 EXIT_INTERRUPTED: Final = 130
 """Process exit status after a second SIGINT (128 + SIGINT, as a shell reports Ctrl-C)."""
 EXIT_GRACE_S: Final = 1.0
@@ -202,6 +205,8 @@ class Runtime:
         self.interrupted = False
         """A second SIGINT asked to stop at once (after the safe stop)."""
         self.refusal: VirtualTimeRealIOError | None = None
+        self.unavailable: str | None = None
+        """What a device that was unavailable at an actor's start said (``None``: none)."""
         """Why the run was refused (real I/O on virtual time); :meth:`run` raises it."""
         self._clock: Clock | None = None
         self._slots: list[_Slot] = []
@@ -468,6 +473,8 @@ class Runtime:
             slot.actor = None
             slot.ready = False
             slot.cut_short = actor.cut_short
+        leaf = _leaf(raised) if raised is not None else None
+        unavailable = isinstance(leaf, DeviceUnavailableError) and not is_ready
         self.emit(
             ActorFailed(
                 t=clock.now(),
@@ -476,12 +483,13 @@ class Runtime:
                 incarnation=incarnation,
                 phase="run" if is_ready else "start",
                 error=error,
-                traceback=trace,
+                traceback="" if unavailable else trace,  # no bug: nothing to trace
             )
         )
-        refusal = _leaf(raised) if raised is not None else None
-        if isinstance(refusal, VirtualTimeRealIOError):
-            self._refuse(refusal, node.name)  # no restart helps: allow it or run on real time
+        if isinstance(leaf, VirtualTimeRealIOError):
+            self._refuse(leaf, node.name)  # no restart helps: allow it or run on real time
+        elif unavailable:
+            self._unavailable(str(leaf), node.name)  # no restart helps: plug it in, free it
         return error
 
     def _escalate(self, node: ActorNode, failures: int, error: str) -> None:
@@ -595,11 +603,21 @@ class Runtime:
         self.refusal = error
         self.request_stop(f"refused: real I/O on virtual time ({error.what})")
 
+    def _unavailable(self, what: str, actor: str) -> None:
+        """A device missing, busy or not permitted at ``actor``'s start: stop in order,
+        exit status :data:`EXIT_UNAVAILABLE`."""
+        if self.unavailable is not None:
+            return
+        self.unavailable = f"actor {actor!r}: {what}"
+        self.request_stop(f"device unavailable: {self.unavailable}")
+
     def _exit_code(self) -> int:
         if self.interrupted:
             return EXIT_INTERRUPTED
         if self.refusal is not None:
             return EXIT_REFUSED
+        if self.unavailable is not None:
+            return EXIT_UNAVAILABLE
         return EXIT_ESCALATED if self.escalated else EXIT_CLEAN
 
     def _still_running(self) -> list[str]:
