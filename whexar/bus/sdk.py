@@ -60,6 +60,7 @@ import dynamixel_sdk as dxl
 from dynamixel_sdk.protocol2_packet_handler import TXPACKET_MAX_LEN, Protocol2PacketHandler
 
 from whexar.bus.control_table import Register
+from whexar.bus.portlock import PortLock
 from whexar.bus.protocol import ALERT, crc16
 from whexar.errors import DeviceGoneError, PortUnavailableError
 from whexar.runtime.channels import LinkTap
@@ -522,6 +523,8 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
 
     timeout_cap_ms: float | None = None
     """When set, no packet timeout is longer (see :meth:`DxlBus.ping`)."""
+    lock: PortLock | None = None
+    """The port's lock (:func:`open_port` takes it); closing the port lets it go."""
     packet_start_time: float
     packet_timeout: float
     ser: Any
@@ -548,6 +551,25 @@ class WaitingPortHandler(dxl.PortHandler):  # type: ignore[misc]
     def clearPort(self) -> None:  # noqa: N802
         self._rx.clear()
         super().clearPort()
+
+    def closePort(self) -> None:  # noqa: N802
+        try:
+            super().closePort()
+        finally:
+            if self.lock is not None and not self._rebauding:
+                self.lock.release()
+                self.lock = None
+
+    _rebauding = False
+    """The SDK's ``setBaudRate`` closes the port and opens it again: the lock stays."""
+
+    def setBaudRate(self, baudrate: int) -> bool:  # noqa: N802
+        self._rebauding = True
+        try:
+            ok: bool = super().setBaudRate(baudrate)
+            return ok
+        finally:
+            self._rebauding = False
 
     def getBytesAvailable(self) -> int:  # noqa: N802
         waiting: int = self.ser.in_waiting
@@ -652,19 +674,25 @@ def open_port(name: str, baudrate: int) -> Any:
 
     Raises :class:`DeviceGoneError` naming the port when it cannot be opened.
     """
+    lock = PortLock.take(name)  # before a byte is written: one owner per port
     port = WaitingPortHandler(name)
+    port.lock = lock
     try:
         if not port.openPort():
             raise DeviceGoneError(f"servo port {name}: could not open it")
         if not port.setBaudRate(baudrate):
             raise DeviceGoneError(f"servo port {name}: baud rate {baudrate} refused")
     except OSError as exc:
+        lock.release()
         why = UNAVAILABLE.get(exc.errno or 0)
         if why is not None:
             raise PortUnavailableError(
                 f"servo port {name}: {why}; `whexar doctor --port {name}` says how to fix it"
             ) from exc
         raise DeviceGoneError(f"servo port {name}: {exc}") from exc
+    except BaseException:
+        lock.release()
+        raise
     return port
 
 
