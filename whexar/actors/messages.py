@@ -471,6 +471,18 @@ class GamepadEventsDropped(Event):
     resynced: bool
 
 
+@message
+class GamepadLayoutUnknown(Event):
+    """The gamepad on ``link`` (``name``) lacks ``missing`` of the configured mapping (the
+    dead-man button or a stick's axis): ``using`` is ``"default"`` when the default mapping
+    fits it and drives it instead, ``"configured"`` when neither does (it cannot drive)."""
+
+    link: str
+    name: str
+    missing: tuple[str, ...]
+    using: str
+
+
 # --------------------------------------------------------------------------- recording
 # The recorder's own events (source "recorder"): about the process, not the robot, so a
 # replay and ``whexar log diff`` leave them out (whexar.record.budget).

@@ -342,6 +342,12 @@ def eviocgname(length: int = 256) -> int:
     return _ioc_read(0x06, length)
 
 
+def eviocgbit(ev_type: int, length: int) -> int:
+    """EVIOCGBIT(ev, len) = _IOC(_IOC_READ, 'E', 0x20 + ev, len): the codes of event type
+    ``ev`` the device can send (its capabilities: which buttons and axes it has)."""
+    return _ioc_read(0x20 + ev_type, length)
+
+
 def keys_held(bitmask: bytes) -> frozenset[int]:
     """The codes set in an EVIOCGKEY bitmask (bit ``code % 8`` of byte ``code // 8``)."""
     return frozenset(

@@ -29,13 +29,18 @@ from typing import Final
 from whexar.errors import DeviceGoneError
 from whexar.runtime.devices import DeviceKind
 from whexar.sensors.evdev import (
+    ABS_MAX,
     ABSINFO,
+    EV_ABS,
+    EV_KEY,
     KEY_BITMASK_BYTES,
+    KEY_MAX,
     NATIVE_RECORD_BYTES,
     AbsInfo,
     InputEvent,
     encode,
     eviocgabs,
+    eviocgbit,
     eviocgkey,
     eviocgname,
     keys_held,
@@ -122,6 +127,16 @@ class EventDevice:
         """The key codes held now (EVIOCGKEY), ``None`` if it cannot tell."""
         raw = self._ioctl(eviocgkey(KEY_BITMASK_BYTES), KEY_BITMASK_BYTES)
         return None if raw is None else keys_held(raw)
+
+    def capabilities(self) -> tuple[frozenset[int], frozenset[int]] | None:
+        """The button (EV_KEY) and axis (EV_ABS) codes the device has (EVIOCGBIT), ``None``
+        if it cannot tell (a pipe)."""
+        key_bytes, abs_bytes = KEY_MAX // 8 + 1, ABS_MAX // 8 + 1
+        keys = self._ioctl(eviocgbit(EV_KEY, key_bytes), key_bytes)
+        axes = self._ioctl(eviocgbit(EV_ABS, abs_bytes), abs_bytes)
+        if keys is None or axes is None:
+            return None
+        return keys_held(keys), keys_held(axes)  # the same bitmask layout as EVIOCGKEY
 
     def close(self) -> None:
         """Close the descriptor (once; later calls do nothing)."""

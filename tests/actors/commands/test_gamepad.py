@@ -21,8 +21,10 @@ from typing import Any
 import pytest
 
 from whexar.actors.commands import MODES, AxisRange, GamepadMapping, GamepadPolicy
+from whexar.actors.commands.gamepad import choose_mapping
 from whexar.actors.messages import (
     GamepadEventsDropped,
+    GamepadLayoutUnknown,
     GamepadLinkDown,
     GamepadLinkHeard,
     GamepadLinkSilent,
@@ -700,3 +702,51 @@ def test_a_missing_device_path_says_why(tmp_path: Path) -> None:
 
     with pytest.raises(DeviceGoneError, match=r"cannot open .*event9: No such file or directory"):
         EventDevice.open(str(tmp_path / "event9"))
+
+
+# --------------------------------------------------------------------------- a pad's layout
+
+PAD_KEYS = frozenset({BTN_SOUTH, BTN_EAST, BTN_TL, BTN_TR})
+PAD_AXES = frozenset({ABS_X, ABS_Y, ABS_RX, ABS_HAT0X})
+"""A common pad's buttons and axes, as EVIOCGBIT reports them (enough for the default)."""
+
+
+def test_a_pad_that_fits_the_configured_mapping_keeps_it() -> None:
+    default = GamepadMapping.from_config(GamepadSpec())
+    chosen, missing, using = choose_mapping(default, default, (PAD_KEYS, PAD_AXES))
+    assert (chosen, missing, using) == (default, (), None)
+    # A pad that cannot tell (a pipe) keeps it too.
+    assert choose_mapping(default, default, None) == (default, (), None)
+
+
+def test_a_pad_without_the_configured_controls_falls_back_to_the_default() -> None:
+    custom = GamepadMapping.from_config(parse_config({"gamepad": {"dead_man": "BTN_TL2"}}).gamepad)
+    default = GamepadMapping.from_config(GamepadSpec())
+    chosen, missing, using = choose_mapping(custom, default, (PAD_KEYS, PAD_AXES))
+    assert chosen is default
+    assert missing == ("BTN_TL2",)
+    assert using == "default"
+    # Neither fits a pad without sticks: the configured one stays, and it is said.
+    chosen, missing, using = choose_mapping(custom, default, (PAD_KEYS, frozenset({ABS_HAT0X})))
+    assert chosen is custom
+    assert using == "configured"
+    assert "BTN_TL2" in missing
+    assert "ABS_Y" in missing
+
+
+def test_the_actor_says_the_layout_is_unknown_and_drives_with_the_default(
+    pipe: EventPipe, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    config = tmp_path / "robot.toml"
+    config.write_text('[gamepad]\ndead_man = "BTN_TL2"\n')  # a trigger this pad lacks
+    monkeypatch.setattr(EventDevice, "capabilities", lambda self: (PAD_KEYS, PAD_AXES))
+
+    async def scenario(h: Harness) -> None:
+        await h.sleep(0.5)
+        drive(pipe, [DEAD_MAN], [(EV_ABS, ABS_Y, -FULL)])  # the default's dead-man: BTN_TL
+        await h.wait_for(MotionCommand)
+
+    result = run_actors(graph(config=config), scenario=scenario, real_io=True)
+    (unknown,) = result.events(GamepadLayoutUnknown)
+    assert (unknown.link, unknown.missing, unknown.using) == ("pipe:pad", ("BTN_TL2",), "default")
+    assert [d for _, what, d in timeline(result) if what == "command"] == [{"vx_m_s": 0.2}]

@@ -184,6 +184,40 @@ class GamepadMapping:
         return dataclasses.replace(self, ranges={**self.ranges, **ranges})
 
 
+def missing_controls(
+    mapping: GamepadMapping, keys: frozenset[int], axes: frozenset[int]
+) -> tuple[str, ...]:
+    """What a pad with buttons ``keys`` and axes ``axes`` (EVIOCGBIT) lacks of ``mapping``
+    to drive: its dead-man and its sticks' axes (a missing action button only loses that
+    action)."""
+    dead_man = mapping.dead_man
+    lost = [] if (dead_man.code in (axes if dead_man.is_axis else keys)) else [dead_man.name]
+    names = {code: name for name, code in ABS_CODES.items()}
+    for stick in mapping.sticks:
+        if stick.axis not in axes:
+            lost.append(names.get(stick.axis, str(stick.axis)))
+    return tuple(dict.fromkeys(lost))
+
+
+def choose_mapping(
+    configured: GamepadMapping,
+    default: GamepadMapping,
+    capabilities: tuple[frozenset[int], frozenset[int]] | None,
+) -> tuple[GamepadMapping, tuple[str, ...], str | None]:
+    """The mapping to drive a pad with ``capabilities`` (``None``: it cannot tell, so the
+    configured one): (mapping, what the configured one lacks, ``"default"`` or
+    ``"configured"`` when it lacks something, else ``None``)."""
+    if capabilities is None:
+        return configured, (), None
+    keys, axes = capabilities
+    lost = missing_controls(configured, keys, axes)
+    if not lost:
+        return configured, (), None
+    if not missing_controls(default, keys, axes):
+        return default, lost, "default"
+    return configured, lost, "configured"
+
+
 class GamepadPolicy:
     """The pad's state and the commands it asks for (see the module docstring).
 

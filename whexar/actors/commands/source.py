@@ -18,7 +18,12 @@ from typing import Final
 
 import anyio
 
-from whexar.actors.commands.gamepad import AxisRange, GamepadMapping, GamepadPolicy
+from whexar.actors.commands.gamepad import (
+    AxisRange,
+    GamepadMapping,
+    GamepadPolicy,
+    choose_mapping,
+)
 from whexar.actors.commands.keyboard import (
     HELP,
     STATUS_PERIOD_S,
@@ -37,6 +42,7 @@ from whexar.actors.commands.terminal import LineReader, Terminal, stdin_fd, writ
 from whexar.actors.messages import (
     CommandRefused,
     GamepadEventsDropped,
+    GamepadLayoutUnknown,
     GamepadLinkDown,
     GamepadLinkHeard,
     GamepadLinkSilent,
@@ -268,7 +274,23 @@ class CommandSource(Actor):
         return lambda: EventDevice.open(link)
 
     def _connect_pad(self, pad: EventDevice, policy: GamepadPolicy, spec: GamepadSpec) -> None:
-        """A pad was opened: its axes as it describes them (EVIOCGABS), if it can."""
+        """A pad was opened: the mapping that fits its layout (EVIOCGBIT), and its axes as
+        it describes them (EVIOCGABS), if it can tell."""
+        configured = GamepadMapping.from_config(spec)
+        default = GamepadMapping.from_config(GamepadSpec())
+        mapping, missing, using = choose_mapping(configured, default, pad.capabilities())
+        policy.mapping = mapping
+        if using is not None:
+            self.emit(
+                GamepadLayoutUnknown(
+                    t=self.now(),
+                    source=self.name,
+                    link=pad.link,
+                    name=pad.name() or "",
+                    missing=missing,
+                    using=using,
+                )
+            )
         infos = {a: info for a in policy.mapping.axes if (info := pad.abs_info(a)) is not None}
         ranges = {
             axis: AxisRange(info.minimum, info.maximum)
