@@ -5,25 +5,11 @@ from __future__ import annotations
 import argparse
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from whexar.cli.common import Commands, print_json
 
-if TYPE_CHECKING:
-    from whexar.sensors.imu_emulator import FakeSMBus
-
 MARKS = {"ok": "✓", "warn": "!", "fail": "✗", "skipped": "-"}
 """One mark per status at the start of a check's line."""
-
-
-def _fake_i2c(number: int, address: int) -> FakeSMBus:
-    """An emulated LSM9DS1 on bus ``number`` at ``address``: the IMU ``whexar run`` and
-    ``whexar sim`` use when no robot is there (``imu.device = "fake"``)."""
-    from whexar.sensors.imu_emulator import FakeLsm9ds1, FakeSMBus
-
-    bus = FakeSMBus(number)
-    bus.attach(address, FakeLsm9ds1())
-    return bus
 
 
 def _doctor(args: argparse.Namespace) -> int:
@@ -33,7 +19,10 @@ def _doctor(args: argparse.Namespace) -> int:
     cfg = RobotConfig() if args.config is None else load_config(args.config)
     env = Environment(config=cfg, port=args.port)
     if args.imu == "fake":
-        env = replace(env, open_i2c=lambda number: _fake_i2c(number, cfg.imu.address))
+        from whexar.sensors.imu_emulator import lsm9ds1_bus
+
+        # The emulated LSM9DS1 that whexar run and whexar sim use where there is no robot.
+        env = replace(env, open_i2c=lambda number: lsm9ds1_bus(number, cfg.imu.address))
     results = run_checks(env)
     if args.json:
         print_json({"ready": ready(results), "checks": [r.as_dict() for r in results]})

@@ -6,13 +6,13 @@ The sensor board (protocol and frame rate over its serial line) has no check yet
 from __future__ import annotations
 
 import contextlib
-import time
 from typing import Final
 
 from whexar.config import ImuSpec
 from whexar.doctor.environment import Environment
 from whexar.doctor.report import CheckResult, Findings, Status, fail, ok, skipped, warn
 from whexar.errors import DeviceGoneError, WhexarError
+from whexar.runtime.clock import monotonic, wait_until
 from whexar.sensors import lsm9ds1 as chip
 from whexar.sensors.lsm9ds1 import I2CBus
 
@@ -87,6 +87,10 @@ GYRO_AT_REST_DPS: Final = 3.0
 zero-rate level is typically ±30 dps (datasheet Table 3)."""
 REST_SAMPLES: Final = 25
 """Samples averaged for the resting reading (half a second at the default 50 Hz)."""
+REST_WAIT_S: Final = 2.0
+"""Longest the resting reading waits for its samples (four times what 50 Hz needs)."""
+POLL_S: Final = 0.005
+"""Between two reads that found no new sample: a quarter of a 50 Hz period."""
 
 
 def _at_rest(
@@ -101,13 +105,13 @@ def _at_rest(
         return None
     calibration = chip.Calibration(spec.accel_offset_g, spec.gyro_offset_dps)
     got: list[chip.Reading] = []
-    deadline = time.monotonic() + 2.0
-    while len(got) < REST_SAMPLES and time.monotonic() < deadline:
+    deadline = monotonic() + REST_WAIT_S
+    while len(got) < REST_SAMPLES and monotonic() < deadline:
         reading = driver.read()
         if reading.new:
             got.append(calibration.apply(reading))
         else:
-            time.sleep(0.005)
+            wait_until(monotonic() + POLL_S)
     if not got:
         return None
     n = len(got)

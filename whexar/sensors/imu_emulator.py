@@ -295,6 +295,14 @@ class FakeLsm9ds1:
             )
 
 
+def lsm9ds1_bus(number: int, address: int) -> FakeSMBus:
+    """A fake ``/dev/i2c-<number>`` with a fresh :class:`FakeLsm9ds1` at ``address``: the
+    IMU where there is none (``imu.device = "fake"``, ``whexar doctor --imu fake``)."""
+    bus = FakeSMBus(number)
+    bus.attach(address, FakeLsm9ds1())
+    return bus
+
+
 def quantise(value: float, per_lsb: float) -> int:
     """The int16 output count for ``value`` at ``per_lsb`` units per count, saturating."""
     if math.isnan(value):
@@ -311,5 +319,6 @@ __all__ = [
     "FakeI2CDevice",
     "FakeLsm9ds1",
     "FakeSMBus",
+    "lsm9ds1_bus",
     "quantise",
 ]

@@ -236,7 +236,9 @@ class CommandSource(Actor):
         link = device or spec.device
         opener = self._pad_opener(link)
         self.clock.uses_real_io(f"gamepad {link}")  # refused on virtual time, unless allowed
-        policy = GamepadPolicy(GamepadMapping.from_config(spec), source=self.name)
+        configured = GamepadMapping.from_config(spec)
+        fallback = GamepadMapping.from_config(GamepadSpec())  # for a pad of another layout
+        policy = GamepadPolicy(configured, source=self.name)
         decoder = EventDecoder(policy.mapping.record_bytes)
         told: str | None = None  # the reason last said down: a cause is said once
         first = True
@@ -251,7 +253,7 @@ class CommandSource(Actor):
                         GamepadLinkDown(t=self.now(), source=self.name, link=link, reason=told)
                     )
             if pad is not None:
-                self._connect_pad(pad, policy, spec)
+                self._connect_pad(pad, policy, spec, (configured, fallback))
             if first:
                 # Ready once the first open is tried and told: a pad not there is an event.
                 self.ready()
@@ -273,20 +275,26 @@ class CommandSource(Actor):
             return lambda: EventDevice.from_pipe(pipe, link)
         return lambda: EventDevice.open(link)
 
-    def _connect_pad(self, pad: EventDevice, policy: GamepadPolicy, spec: GamepadSpec) -> None:
-        """A pad was opened: the mapping that fits its layout (EVIOCGBIT), and its axes as
-        it describes them (EVIOCGABS), if it can tell."""
-        configured = GamepadMapping.from_config(spec)
-        default = GamepadMapping.from_config(GamepadSpec())
-        mapping, missing, using = choose_mapping(configured, default, pad.capabilities())
+    def _connect_pad(
+        self,
+        pad: EventDevice,
+        policy: GamepadPolicy,
+        spec: GamepadSpec,
+        mappings: tuple[GamepadMapping, GamepadMapping],
+    ) -> None:
+        """A pad was opened: of ``mappings`` (the configured one, the default) the one that
+        fits its layout (EVIOCGBIT), and its axes as it describes them (EVIOCGABS), if it
+        can tell."""
+        mapping, missing, using = choose_mapping(*mappings, pad.capabilities())
         policy.mapping = mapping
+        name = pad.name() or ""
         if using is not None:
             self.emit(
                 GamepadLayoutUnknown(
                     t=self.now(),
                     source=self.name,
                     link=pad.link,
-                    name=pad.name() or "",
+                    name=name,
                     missing=missing,
                     using=using,
                 )
@@ -299,9 +307,7 @@ class CommandSource(Actor):
         }
         values = {axis: info.value for axis, info in infos.items()}
         policy.connected(self.now(), ranges=ranges, values=values)
-        self.emit(
-            GamepadLinkUp(t=self.now(), source=self.name, link=pad.link, name=pad.name() or "")
-        )
+        self.emit(GamepadLinkUp(t=self.now(), source=self.name, link=pad.link, name=name))
 
     async def _read_pad(
         self, pad: EventDevice, policy: GamepadPolicy, decoder: EventDecoder

@@ -76,7 +76,7 @@ from whexar.errors import DeviceError, DeviceGoneError, UsageError
 from whexar.runtime.actor import Actor, ActorParams, Output
 from whexar.runtime.devices import DEVICES
 from whexar.sensors.gravity import GravityCheck
-from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
+from whexar.sensors.imu_emulator import I2C_BUS, lsm9ds1_bus
 from whexar.sensors.lsm9ds1 import (
     ODR_HZ,
     Calibration,
@@ -200,8 +200,7 @@ class ImuReader(Actor):
         if device is None:
             return lambda: open_bus(number)
         if device == I2C_BUS.scheme:
-            fake = FakeSMBus(number)
-            fake.attach(self.address, FakeLsm9ds1())
+            fake = lsm9ds1_bus(number, self.address)
             return lambda: fake
         scheme, key = device.split(":", 1)
         if scheme == REPLAYED_I2C.scheme:
