@@ -1,12 +1,18 @@
-"""``whexar emulate`` and ``whexar bus …``: the servo emulator on a pty, a bus scan."""
+"""``whexar emulate`` and ``whexar bus …``: the servo emulator (and the sensor board's) on a
+pty, a bus scan."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from whexar.cli.common import Commands, print_json
+
+if TYPE_CHECKING:
+    from whexar.config import RobotConfig
+    from whexar.sensors.board_pty import BoardPty
 
 
 def _baud(value: str) -> int:
@@ -50,6 +56,7 @@ def _emulate(args: argparse.Namespace) -> int:
     if plan is not None:
         FaultInjector(plan, on_log=_fault_line).attach(chain)
     stop = threading.Event()
+    board = _board_pty(cfg) if args.board else None
 
     def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
@@ -64,11 +71,21 @@ def _emulate(args: argparse.Namespace) -> int:
             timing = "answers at once" if args.no_realtime else "answers in real time"
             faults = f"fault plan {args.faults}" if plan is not None else "no faults"
             fast = "fast sync read on" if args.fast_sync_read else "fast sync read off"
+            if board is not None:
+                spec = cfg.sensor_board
+                print(
+                    f"sensor board emulator: on {board.path} at {spec.baudrate} bps, "
+                    f"{spec.frame_rate_hz:g} frames/s until rate=N#",
+                    flush=True,
+                )
             print(f"{timing}; {fast}; {faults}; stop with SIGINT or SIGTERM", flush=True)
             while not stop.wait(0.5):
-                pass
+                if board is not None and board.error is not None:
+                    raise board.error
         stats = emulator.stats
     finally:
+        if board is not None:
+            board.close()
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     print(
@@ -102,6 +119,20 @@ def _bus_scan(args: argparse.Namespace) -> int:
     return 0 if found else 1
 
 
+def _board_pty(cfg: RobotConfig) -> BoardPty:
+    """The configuration's sensor board, emulated on its own pty (level, legs unloaded)."""
+    from whexar.sensors.board_emulator import SensorBoardEmulator
+    from whexar.sensors.board_pty import BoardPty
+
+    spec = cfg.sensor_board
+    board = SensorBoardEmulator(
+        frame_rate_hz=spec.frame_rate_hz,
+        baudrate=spec.baudrate,
+        accelerometer=spec.accelerometer.fitted,
+    )
+    return BoardPty(board)
+
+
 def add_commands(commands: Commands) -> None:
     """Add this group's commands to the ``whexar`` command table."""
     emulate = commands.add_parser(
@@ -112,7 +143,7 @@ def add_commands(commands: Commands) -> None:
         "The first line names the pty; open it like a serial port (dynamixel-sdk, "
         "whexar bus scan --port …). Fault lines follow as faults start and end. Exit "
         "status 0 after SIGINT/SIGTERM, 1 if the configuration or the fault plan has "
-        "problems.",
+        "problems. With --board, a line names a second pty: the sensor board's.",
     )
     emulate.add_argument(
         "--servos",
@@ -138,6 +169,13 @@ def add_commands(commands: Commands) -> None:
         "--fast-sync-read",
         action="store_true",
         help="let the servos answer Fast Sync Read (unconfirmed on MX firmware)",
+    )
+    emulate.add_argument(
+        "--board",
+        action="store_true",
+        help="also emulate the sensor board (firmware/PROTOCOL.md) on a second pty, in "
+        "real time: for whexar doctor --board-port, whexar sensors --port, whexar run "
+        "--set sensors.port=PTY",
     )
     emulate.set_defaults(handler=_emulate)
 
