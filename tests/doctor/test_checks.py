@@ -2,7 +2,9 @@
 
 The servo checks talk to the servo emulator's chain through dynamixel-sdk's own
 packet handler (an in-process :class:`EmulatedPort`); the latency timer reads a fake
-sysfs tree; the IMU is the fake LSM9DS1 on a fake I²C bus.
+sysfs tree; the sensor board is :class:`~whexar.testing.board.FakeBoard` on a fake
+clock (``tests/doctor/test_board.py`` breaks it in every way); the IMU is the fake
+LSM9DS1 on a fake I²C bus.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from whexar.doctor import CheckResult, Environment, Status, ready, run_checks
 from whexar.doctor.host import INSTALL_RULE, UDEV_RULE
 from whexar.errors import DeviceGoneError
 from whexar.sensors.imu_emulator import FakeLsm9ds1, FakeSMBus
+from whexar.testing.board import FakeBoard
 
 CFG = RobotConfig()
 WHEELS = [leg.servo_ids[-1] for leg in CFG.legs]
@@ -68,7 +71,10 @@ def env(tmp_path: Path) -> Environment:
     rules = tmp_path / "udev"
     rules.mkdir()
     (rules / UDEV_RULE).write_text("")
+    board = tmp_path / "dev" / "ttyACM0"
+    board.touch()
     servos = chain()
+    fake_board = FakeBoard()
     return Environment(
         config=CFG,
         port=str(port),
@@ -80,6 +86,9 @@ def env(tmp_path: Path) -> Environment:
         process_groups=lambda: [1000, 20],
         user_groups=lambda: ["robot", "dialout"],
         open_servo_port=opener(servos),
+        board_port=str(board),
+        open_board_port=fake_board.open,
+        now=fake_board.clock.now,
         open_i2c=lambda number: fake_imu(),
         recordings=lambda: tmp_path / "recordings",
         free_bytes=lambda path: 5_000_000_000,
@@ -106,6 +115,7 @@ def test_a_ready_robot_passes_every_check(env: Environment) -> None:
         "servos",
         "eeprom",
         "voltage and temperature",
+        "sensor board",
         "imu",
         "free disk",
         "versions",
@@ -163,7 +173,7 @@ def test_the_access_asked_is_read_and_write(env: Environment) -> None:
         return True
 
     results(replace(env, access=access))
-    assert asked == [os.R_OK | os.W_OK]
+    assert asked == [os.R_OK | os.W_OK] * 2  # the servo port, the board's
 
 
 # ------------------------------------------------------------------ latency timer

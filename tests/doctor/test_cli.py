@@ -46,29 +46,39 @@ DOCTOR = [sys.executable, "-m", "whexar.cli", "doctor", "--json", "--imu", "fake
 """The doctor with the emulated IMU, as a subprocess."""
 
 
-@pytest.mark.slow
-def test_doctor_on_the_emulators_finds_the_robot_ready(tmp_path: Path) -> None:
+def _emulate(*args: str) -> tuple[subprocess.Popen[str], dict[str, str]]:
+    """``whexar emulate ARGS`` and the ptys its first lines name ("servo", "board")."""
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "whexar.cli", "emulate", "--no-realtime"],
+        [sys.executable, "-m", "whexar.cli", "emulate", *args],
         stdout=subprocess.PIPE,
         text=True,
         cwd=ROOT,
         env=env,
     )
+    assert proc.stdout is not None
+    ptys: dict[str, str] = {}
+    with selectors.DefaultSelector() as sel:
+        sel.register(proc.stdout, selectors.EVENT_READ)
+        assert sel.select(20.0), "whexar emulate printed no pty"
+    # The pty lines are printed together, first of all (the rest is buffered: no select).
+    while len(ptys) < (2 if "--board" in args else 1):
+        line = proc.stdout.readline()
+        what = "board" if line.startswith("sensor board emulator:") else "servo"
+        ptys[what] = line.split(" on ", 1)[1].split(" at ")[0]
+    return proc, ptys
+
+
+@pytest.mark.slow
+def test_doctor_on_the_emulators_finds_the_robot_ready(tmp_path: Path) -> None:
+    proc, ptys = _emulate("--no-realtime", "--board")
     try:
-        assert proc.stdout is not None
-        with selectors.DefaultSelector() as sel:
-            sel.register(proc.stdout, selectors.EVENT_READ)
-            assert sel.select(20.0), "whexar emulate printed nothing"
-        first = proc.stdout.readline()
-        path = first.split(" on ", 1)[1].split(" at ")[0]
         done = subprocess.run(
-            [*DOCTOR, "--port", path],
+            [*DOCTOR, "--port", ptys["servo"], "--board-port", ptys["board"]],
             capture_output=True,
             text=True,
             cwd=ROOT,
-            env=env,
+            env=dict(os.environ, PYTHONUNBUFFERED="1"),
             timeout=60,
         )
     finally:
@@ -83,7 +93,30 @@ def test_doctor_on_the_emulators_finds_the_robot_ready(tmp_path: Path) -> None:
     # writes velocity mode, so this is a warning, never a failure.
     assert checks["eeprom"]["status"] == "warn"
     assert checks["voltage and temperature"]["status"] == "ok"
+    board = checks["sensor board"]
+    assert board["status"] == "ok", board
+    assert board["summary"].startswith(f"checked frames on {ptys['board']} at ")
+    assert "(asked 20), IR and force sensors, no accelerometer" in board["summary"]
     assert checks["imu"]["status"] == "ok"  # the emulated LSM9DS1
     # Against the emulators every check passes or warns: the robot is ready.
     assert done.returncode == 0
     assert json.loads(done.stdout)["ready"] is True
+
+
+@pytest.mark.slow
+def test_a_board_port_where_nothing_answers_fails_and_names_the_fix(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # A pty that nobody writes: a board that is plugged in but runs no firmware.
+    master, slave = os.openpty()
+    try:
+        code = main(["doctor", "--port", os.ttyname(slave), "--board-port", os.ttyname(slave)])
+    finally:
+        os.close(master)
+        os.close(slave)
+    out = capsys.readouterr().out
+    assert code == 1
+    (line,) = [ln for ln in out.splitlines() if ln.startswith("✗ sensor board")]
+    assert line.endswith("sent nothing in 3 s: the board's firmware is not running")
+    fix = out.splitlines()[out.splitlines().index(line) + 1]
+    assert fix.startswith("    fix: flash whexar's firmware")

@@ -32,7 +32,9 @@ from whexar.actors.messages import (
     SensorFrameGap,
     SensorFrameRejected,
 )
-from whexar.config import RobotConfig
+from whexar.config import RobotConfig, parse_config
+from whexar.doctor import Environment, Findings, Status
+from whexar.doctor.board import check_sensor_board
 from whexar.kinematics.sensing import ir_distance, tilt_from_acceleration
 from whexar.sensors.board_emulator import SensorBoardEmulator
 from whexar.sensors.frame import Frame, FrameDecoder, Rejected
@@ -310,3 +312,22 @@ def test_monitor_prints_the_firmwares_frames(pty_sim: str) -> None:
     assert frames[-1]["ir_distance_m"][1] is None
     assert frames[-1]["roll_deg"] is None
     assert {r["event"] for r in records if r["kind"] == "event"} == {"SensorLinkUp"}
+
+
+def test_doctor_finds_the_firmware_ready_at_the_rate_it_asks(pty_sim: str) -> None:
+    # The doctor's check on the very firmware a user flashes: checked frames, every
+    # group, and rate=50# obeyed (the build's default is 20 Hz).
+    env = Environment(
+        config=parse_config({"sensor_board": {"frame_rate_hz": 50}}), board_port=pty_sim
+    )
+    found = Findings()
+    try:
+        got = check_sensor_board(env, found)
+    finally:
+        for close in found.closers:
+            close()
+    assert got.status is Status.OK, got
+    assert got.summary.startswith(f"checked frames on {pty_sim} at ")
+    assert "(asked 50), IR and force sensors, no accelerometer" in got.summary
+    fsr = ",".join(str(EXPECTED[f"fsr{i}"]) for i in range(6))
+    assert got.details[0] == f"last frame: ir1={EXPECTED['ir1']} ir2={EXPECTED['ir2']}, fsr {fsr}"

@@ -17,7 +17,7 @@ def _doctor(args: argparse.Namespace) -> int:
     from whexar.doctor import Environment, ready, run_checks
 
     cfg = RobotConfig() if args.config is None else load_config(args.config)
-    env = Environment(config=cfg, port=args.port)
+    env = Environment(config=cfg, port=args.port, board_port=args.board_port)
     if args.imu == "fake":
         from whexar.sensors.imu_emulator import lsm9ds1_bus
 
@@ -46,7 +46,8 @@ def add_commands(commands: Commands) -> None:
         description="Check, in order: the servo port and its permissions, the USB "
         "adapter's latency timer, the bus's baud rate, every configured servo (model, "
         "firmware, ID, and nothing else on the bus), their EEPROM against the "
-        "configuration, supply voltage and temperatures, the IMU, free disk for "
+        "configuration, supply voltage and temperatures, the sensor board (its frames "
+        "and their rate), the IMU, free disk for "
         "recordings, Python and package versions. A check that needs a failed one is "
         "skipped. Exit status 0 when no check failed, 1 otherwise.",
     )
@@ -55,6 +56,13 @@ def add_commands(commands: Commands) -> None:
     )
     doctor.add_argument(
         "--port", default=None, metavar="DEVICE", help="servo port (default: [bus] port)"
+    )
+    doctor.add_argument(
+        "--board-port",
+        default=None,
+        metavar="DEVICE",
+        help="sensor board port (default: [sensor_board] port); whexar emulate --board "
+        "names an emulated one",
     )
     doctor.add_argument(
         "--imu",

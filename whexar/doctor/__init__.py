@@ -11,7 +11,8 @@ is wrong and the command that fixes it.
 * :mod:`~whexar.doctor.servos` — the servo bus: the baud rate answers, every servo
   of the configuration with its model, firmware and ID (and nothing else), each
   servo's EEPROM against the configuration, supply voltage and temperatures;
-* :mod:`~whexar.doctor.devices` — the IMU on I²C (the sensor board: to come).
+* :mod:`~whexar.doctor.board` — the sensor board: its port, its frames and their rate;
+* :mod:`~whexar.doctor.devices` — the IMU on I²C.
 
 Each check is a plain function of the environment and what earlier checks found;
 the command line (:mod:`whexar.cli.doctor`) only prints the results. May import

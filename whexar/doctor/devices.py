@@ -1,7 +1,5 @@
-"""Checks of the other devices: the IMU on the Pi's I²C bus.
-
-The sensor board (protocol and frame rate over its serial line) has no check yet.
-"""
+"""Checks of the other devices: the IMU on the Pi's I²C bus (the sensor board's check is
+:mod:`whexar.doctor.board`)."""
 
 from __future__ import annotations
 

@@ -10,10 +10,39 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from whexar.config import RobotConfig
+from whexar.runtime.clock import monotonic
 from whexar.sensors.lsm9ds1 import I2CBus
+
+
+class BoardPort(Protocol):
+    """The sensor board's serial port as the check uses it (a ``serial.Serial``)."""
+
+    def read(self, size: int) -> bytes:
+        """Up to ``size`` bytes, or fewer (none) once the port's read timeout passes."""
+        ...
+
+    def write(self, data: bytes) -> int | None: ...
+
+    def reset_input_buffer(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+BOARD_READ_TIMEOUT_S = 0.02
+"""A read of the board's port returns after this with what arrived (a frame is 2 ms long)."""
+
+
+def _open_board_port(name: str, baudrate: int) -> BoardPort:
+    import serial
+
+    try:
+        return serial.Serial(name, baudrate, timeout=BOARD_READ_TIMEOUT_S)
+    except serial.SerialException as exc:
+        cause = exc.__context__
+        raise cause if isinstance(cause, OSError) else OSError(str(exc)) from exc
 
 
 def _open_servo_port(name: str, baudrate: int) -> Any:
@@ -93,6 +122,13 @@ class Environment:
     """The groups the user belongs to in the group database (joined, maybe not yet active)."""
     open_servo_port: Callable[[str, int], Any] = _open_servo_port
     """Open the servo port at a rate; raises ``DeviceGoneError`` or ``OSError``."""
+    board_port: str | None = None
+    """The sensor board's port; ``None``: the configuration's ``[sensor_board] port``."""
+    open_board_port: Callable[[str, int], BoardPort] = _open_board_port
+    """Open the board's port at a rate, reads returning after a short timeout; raises
+    ``OSError``."""
+    now: Callable[[], float] = monotonic
+    """Seconds, for the checks that time what a device sends (the board's frame rate)."""
     open_i2c: Callable[[int], I2CBus] = _open_i2c
     recordings: Callable[[], Path] = _recordings
     free_bytes: Callable[[Path], int] = _free_bytes
@@ -106,6 +142,11 @@ class Environment:
     def servo_port(self) -> str:
         """The servo port the checks use."""
         return self.port if self.port is not None else self.config.bus.port
+
+    @property
+    def board_port_name(self) -> str:
+        """The sensor board's port the checks use."""
+        return self.board_port if self.board_port is not None else self.config.sensor_board.port
 
 
 def _user_groups() -> list[str]:

@@ -34,8 +34,15 @@ def check_servo_port(env: Environment, found: Findings) -> CheckResult:
             "plug the U2D2 in and find its port with: ls /dev/serial/by-id/; then pass "
             "--port DEVICE or set [bus] port in the configuration",
         )
+    denied = permission(env, path, name)
+    return denied or ok(name, f"{path} exists and is readable and writable")
+
+
+def permission(env: Environment, path: Path, name: str) -> CheckResult | None:
+    """``None`` when this process may read and write the device ``path``; else check
+    ``name``'s failure, naming its group and how to join it."""
     if env.access(path, os.R_OK | os.W_OK):
-        return ok(name, f"{path} exists and is readable and writable")
+        return None
     group = env.group_name(env.device_gid(path))
     active = {env.group_name(g) for g in env.process_groups()}
     if group in env.user_groups() and group not in active:

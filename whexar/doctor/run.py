@@ -11,7 +11,7 @@ import contextlib
 from collections.abc import Sequence
 from typing import Final
 
-from whexar.doctor import devices, host, servos
+from whexar.doctor import board, devices, host, servos
 from whexar.doctor.environment import Environment
 from whexar.doctor.report import Check, CheckResult, Findings, Status, skipped
 
@@ -22,6 +22,7 @@ CHECKS: Final[tuple[Check, ...]] = (
     Check("servos", servos.check_servos, ("baud rate",)),
     Check("eeprom", servos.check_eeprom, ("baud rate",)),
     Check("voltage and temperature", servos.check_power, ("baud rate",)),
+    Check("sensor board", board.check_sensor_board),
     Check("imu", devices.check_imu),
     Check("free disk", host.check_free_disk),
     Check("versions", host.check_versions),
