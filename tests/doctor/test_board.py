@@ -15,7 +15,7 @@ import pytest
 from whexar.config import RobotConfig, parse_config
 from whexar.doctor import CheckResult, Environment, Findings, Status
 from whexar.doctor.board import FIRST_FRAME_S, MEASURE_S, check_sensor_board
-from whexar.testing.board import FakeBoard
+from whexar.testing.board import FakeBoard, FakeBoardPort
 
 
 @pytest.fixture
@@ -84,7 +84,7 @@ def test_a_port_of_another_group_says_usermod(port: Path) -> None:
 
 
 def test_a_port_that_cannot_open_says_why(port: Path) -> None:
-    def refuse(name: str, baudrate: int) -> FakeBoard:
+    def refuse(name: str, baudrate: int) -> FakeBoardPort:
         raise OSError(16, "Device or resource busy")
 
     got = check_sensor_board(
