@@ -228,20 +228,31 @@ def cpu_per_cycle_ms(plan: str, cfg: RobotConfig, seconds: float = 2.0) -> float
 @contextlib.contextmanager
 def emulator_process() -> Iterator[str]:
     """``whexar emulate`` in real-time mode in another process; yields its pty path."""
+    with emulators_process(board=False) as ptys:
+        yield ptys[0]
+
+
+@contextlib.contextmanager
+def emulators_process(*, board: bool = True) -> Iterator[tuple[str, str | None]]:
+    """``whexar emulate [--board]`` in real-time mode in another process; yields the servo
+    pty and the sensor board's (``None`` without ``board``)."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "whexar.cli", "emulate"],
+        [sys.executable, "-m", "whexar.cli", "emulate", *(["--board"] if board else [])],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
     try:
         assert proc.stdout is not None
-        first = proc.stdout.readline()
-        found = re.search(r"(/dev/\S+)", first)
-        if not found:
-            err = proc.stderr.read() if proc.stderr else ""
-            raise RuntimeError(f"whexar emulate did not print its pty: {first!r} {err}")
-        yield found.group(1)
+        ptys: list[str] = []
+        for _ in range(2 if board else 1):
+            line = proc.stdout.readline()
+            found = re.search(r" on (/dev/\S+)", line)
+            if not found:
+                err = proc.stderr.read() if proc.stderr else ""
+                raise RuntimeError(f"whexar emulate did not print its pty: {line!r} {err}")
+            ptys.append(found.group(1))
+        yield ptys[0], (ptys[1] if board else None)
     finally:
         proc.send_signal(signal.SIGTERM)
         try:

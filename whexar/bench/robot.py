@@ -2,9 +2,11 @@
 
 The robot's graph (``config/graphs/walk.toml``: the bus scheduler, the sensor-board
 and IMU readers, six leg actors, the coordinator, a command source) runs on real
-time with its servo bus on a pseudo-terminal to ``whexar emulate`` in another
-process, as a U2D2 would carry it; the sensor board and the IMU are the graph's
-in-process emulators. It stands up, then walks the tripod gait. Measured after
+time with its servo bus and its sensor board on two pseudo-terminals to ``whexar
+emulate --board`` in another process, as the U2D2 and the Mega's USB line would carry
+them: the controller reads the board's frames through pyserial-asyncio as on the
+robot. The IMU is the graph's in-process emulated LSM9DS1 (an I²C bus cannot be put
+on a pty); its emulation is counted. It stands up, then walks the tripod gait. Measured after
 the stand-up, in the runtime's process (all threads), per completed bus cycle:
 
 * **core_pct** — process CPU time over wall time: the share of one core the
@@ -15,7 +17,8 @@ the stand-up, in the runtime's process (all threads), per completed bus cycle:
 * **cycle_hz** — bus cycles per second, against the bus limit's 98 % for the
   graph's read plan: the controller must not slow the bus.
 
-The emulator's own process is not counted: on the robot the servos do that work.
+The emulators' own process is not counted: on the robot the servos and the board do
+that work.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from typing import Final
 
 from whexar.actors.graph import robot_graph
 from whexar.bench import Figure, Progress, Report
-from whexar.bench.bus import emulator_process, plan_limit
+from whexar.bench.bus import emulators_process, plan_limit
 from whexar.bus.emulator.timing import TimingModel
 from whexar.bus.plan import PRESETS
 from whexar.config import RobotConfig
@@ -53,11 +56,11 @@ def measure(seconds: float = 10.0) -> tuple[float, float, float, int]:
         if channel == "servo-state":
             marks.append((time.perf_counter(), time.process_time()))
 
-    with tempfile.TemporaryDirectory() as folder, emulator_process() as pty:
+    with tempfile.TemporaryDirectory() as folder, emulators_process() as (pty, board):
         script = Path(folder) / "walk.jsonl"
         lines = [{"t": STAND_S, "gait": "tripod", "vx_m_s": WALK_SPEED_M_S}]
         script.write_text("".join(json.dumps(line) + "\n" for line in lines))
-        doc = robot_graph(bus=pty, commands=str(script))
+        doc = robot_graph(bus=pty, sensors=board, commands=str(script))
 
         async def main() -> None:
             runtime = Runtime(build_graph(doc, source="bench robot"), observer=observe)
@@ -76,7 +79,8 @@ def run(progress: Progress = None, *, seconds: float = 10.0) -> Report:
     """Measure the robot's graph; ``progress`` receives a line per step."""
     say = progress or (lambda _line: None)
     say(
-        f"the robot's graph on real time, bus over a pty to `whexar emulate`: "
+        f"the robot's graph on real time, bus and sensor board over ptys to `whexar "
+        f"emulate --board`: "
         f"{STAND_S:g} s to stand, {seconds:g} s of tripod walking…"
     )
     core, per_cycle, hz, cycles = measure(seconds)
@@ -107,7 +111,8 @@ def run(progress: Progress = None, *, seconds: float = 10.0) -> Report:
         ],
         notes=[
             f"{cycles} cycles over {seconds:g} s of walking after {STAND_S:g} s of stand-up; "
-            "CPU is this process's (all threads); the emulator's process is not counted.",
+            "CPU is this process's (all threads): the controller and the emulated IMU; "
+            "the servo and sensor-board emulators' process is not counted.",
             "A Raspberry Pi 4 core is about 3-4x slower than this machine's: 25 % here is "
             "most of a Pi core.",
         ],
