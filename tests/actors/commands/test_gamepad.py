@@ -723,7 +723,7 @@ def test_a_pad_without_the_configured_controls_falls_back_to_the_default() -> No
     custom = GamepadMapping.from_config(parse_config({"gamepad": {"dead_man": "BTN_TL2"}}).gamepad)
     default = GamepadMapping.from_config(GamepadSpec())
     chosen, missing, using = choose_mapping(custom, default, (PAD_KEYS, PAD_AXES))
-    assert chosen is default
+    assert chosen == default
     assert missing == ("BTN_TL2",)
     assert using == "default"
     # Neither fits a pad without sticks: the configured one stays, and it is said.
@@ -732,6 +732,36 @@ def test_a_pad_without_the_configured_controls_falls_back_to_the_default() -> No
     assert using == "configured"
     assert "BTN_TL2" in missing
     assert "ABS_Y" in missing
+
+
+def test_the_fallback_takes_the_defaults_controls_and_keeps_the_configured_tunables() -> None:
+    spec = parse_config(
+        {
+            "gamepad": {
+                "dead_man": "BTN_TL2",
+                "forward": {"axis": "ABS_RY", "invert": False},
+                "max_forward_m_s": 0.05,
+                "max_yaw_rate_deg_s": 10.0,
+                "dead_zone": 0.4,
+                "silent_after_s": 0.5,
+                "ranges": {"ABS_RY": [-100, 100], "ABS_Y": [0, 255]},
+            }
+        }
+    ).gamepad
+    custom = GamepadMapping.from_config(spec)
+    default = GamepadMapping.from_config(GamepadSpec())
+    chosen, _, using = choose_mapping(custom, default, (PAD_KEYS, PAD_AXES))
+    assert using == "default"
+    # The default's controls: its dead-man, its forward axis and sense, its buttons.
+    assert chosen.dead_man == default.dead_man
+    assert (chosen.forward.axis, chosen.forward.sign) == (ABS_Y, -1.0)
+    assert chosen.buttons == default.buttons
+    # The configured tunables: a slow robot stays slow on another pad.
+    assert chosen.forward.full == pytest.approx(0.05)
+    assert chosen.turn.full == pytest.approx(math.radians(10.0))
+    assert chosen.sideways.full == default.sideways.full  # not configured: the default's
+    assert (chosen.dead_zone, chosen.silent_after_s) == (0.4, 0.5)
+    assert chosen.ranges[ABS_Y] == AxisRange(0, 255)  # the configured range of that axis
 
 
 def test_the_actor_says_the_layout_is_unknown_and_drives_with_the_default(

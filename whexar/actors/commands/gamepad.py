@@ -48,7 +48,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Final
 
 from whexar.actors.messages import MotionCommand
@@ -169,6 +169,20 @@ class GamepadMapping:
             ),
         )
 
+    def with_controls_of(self, other: GamepadMapping) -> GamepadMapping:
+        """``other``'s controls — the dead-man, each stick's axis and sense, the buttons —
+        with this mapping's tunables: full-travel speeds, dead zone, resolution, silence,
+        record size, and its axis ranges where it gives one (they describe the pad)."""
+        return replace(
+            self,
+            dead_man=other.dead_man,
+            forward=replace(other.forward, full=self.forward.full),
+            sideways=replace(other.sideways, full=self.sideways.full),
+            turn=replace(other.turn, full=self.turn.full),
+            buttons=other.buttons,
+            ranges={**other.ranges, **self.ranges},
+        )
+
     @property
     def sticks(self) -> tuple[Stick, Stick, Stick]:
         return (self.forward, self.sideways, self.turn)
@@ -206,7 +220,9 @@ def choose_mapping(
 ) -> tuple[GamepadMapping, tuple[str, ...], str | None]:
     """The mapping to drive a pad with ``capabilities`` (``None``: it cannot tell, so the
     configured one): (mapping, what the configured one lacks, ``"default"`` or
-    ``"configured"`` when it lacks something, else ``None``)."""
+    ``"configured"`` when it lacks something, else ``None``). ``"default"`` takes the
+    default's controls and keeps the configured speeds and tunables
+    (:meth:`GamepadMapping.with_controls_of`)."""
     if capabilities is None:
         return configured, (), None
     keys, axes = capabilities
@@ -214,7 +230,7 @@ def choose_mapping(
     if not lost:
         return configured, (), None
     if not missing_controls(default, keys, axes):
-        return default, lost, "default"
+        return configured.with_controls_of(default), lost, "default"
     return configured, lost, "configured"
 
 
