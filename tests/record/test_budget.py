@@ -5,6 +5,7 @@ disk, the ``[recording]`` section, and a recorder that keeps the budget while it
 from __future__ import annotations
 
 import os
+import threading
 from pathlib import Path
 
 import anyio
@@ -23,11 +24,14 @@ from whexar.record.budget import (
     Budget,
     BudgetGuard,
     FileInfo,
+    GuardThread,
     LocalDisk,
+    Plan,
     plan,
     recordings_folder,
     report_line,
 )
+from whexar.record.encoding import RecordingError
 from whexar.record.reader import Recording
 from whexar.record.writer import Recorder
 from whexar.runtime.clock import monotonic, wait_until
@@ -352,6 +356,94 @@ def test_the_guard_recognises_the_recording_however_its_path_is_spelled(
     assert (folder / "now.mcap").exists()
 
 
+def test_a_plan_and_a_guard_travel_as_json(tmp_path: Path) -> None:
+    found = plan(
+        [_file("a.mcap", 30, 3 * DAY), _file("b.mcap", 30, 2 * DAY), _file("now.mcap", 70, 0)],
+        CURRENT,
+        Budget(max_total_bytes=60 * MB),
+        None,
+        NOW,
+    )
+    assert len(found.deletions) == 2
+    assert found.stop is not None
+    assert Plan.from_json(found.to_json()) == found
+    assert Plan.from_json(Plan().to_json()) == Plan()
+    guard = BudgetGuard(Budget(MB, DAY, None), "run.mcap", tmp_path, period_s=0.25)
+    again = BudgetGuard.described(guard.describe())
+    assert (again.budget, again.path, again.folder) == (guard.budget, guard.path, guard.folder)
+    assert again.period_s == 0.25
+    assert isinstance(again.disk, LocalDisk)
+    fake = BudgetGuard(Budget(MB), CURRENT, DIR, disk=FakeDisk())
+    with pytest.raises(TypeError):
+        fake.describe()  # another process cannot see a test's fake disk
+    from whexar.record.sidecar import RecorderProcess
+
+    with pytest.raises(RecordingError, match="keeps no such budget"):
+        RecorderProcess(tmp_path / "x.mcap", guard=fake)
+
+
+class _SlowDisk(FakeDisk):
+    """A fake disk whose deletions wait until they are let go, noting their thread."""
+
+    def __init__(self) -> None:
+        super().__init__(now_s=NOW)
+        self.go = threading.Event()
+        self.threads: list[int] = []
+
+    def remove(self, path: Path) -> None:
+        self.threads.append(threading.get_ident())
+        assert self.go.wait(10.0)
+        super().remove(path)
+
+
+def test_the_guards_thread_deletes_while_the_loop_goes_on() -> None:
+    disk = _SlowDisk()
+    disk.add(DIR / "a.mcap", 40 * MB, 3 * DAY)
+    disk.add(DIR / "b.mcap", 40 * MB, 2 * DAY)
+    guard = BudgetGuard(Budget(max_total_bytes=100 * MB), CURRENT, DIR, disk=disk, period_s=0)
+    disk.files[CURRENT] = (90 * MB, NOW)  # 170 MB: a and b go, on the thread
+    checks = GuardThread(guard)
+    plans = checks.poll()  # the check starts, and is left to run
+    deadline = monotonic() + 10.0
+    while not disk.threads:
+        plans += checks.poll()
+        assert monotonic() < deadline
+    for _ in range(100):  # the deletion waits: the caller does not
+        start = monotonic()
+        plans += checks.poll()
+        assert monotonic() - start < 0.05
+    assert disk.removed == []
+    disk.go.set()
+    while not any(p.acts for p in plans):
+        plans += checks.poll()
+        assert monotonic() < deadline
+    (acted,) = [p for p in plans if p.acts]
+    assert [d.file.path for d in acted.deletions] == [DIR / "a.mcap", DIR / "b.mcap"]
+    assert disk.removed == [DIR / "a.mcap", DIR / "b.mcap"]
+    assert set(disk.threads) == {disk.threads[0]} != {threading.get_ident()}
+    assert checks.finish() in ([], [Plan()])
+
+
+def test_a_check_under_way_at_close_is_reported_in_the_file(tmp_path: Path) -> None:
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    path = folder / "new.mcap"
+    guard = BudgetGuard(Budget(max_total_bytes=4000), path, folder, period_s=0)
+    recorder = Recorder(path, guard=guard)  # the first check: nothing to delete
+    old = folder / "old.mcap"
+    old.write_bytes(b"x" * 5000)
+    os.utime(old, (1, 1))
+    guard._others = None  # as if the budget had been passed: the next check lists
+    recorder.keep_budget()  # the check starts on its thread; close() waits for it
+    recorder.close()
+    assert not old.exists()
+    (deleted,) = recorder.events
+    assert isinstance(deleted, RecordingDeleted)
+    assert (deleted.path, deleted.size_bytes) == (str(old), 5000)
+    recorded = [r.value for r in Recording(path).records() if r.topic == f"/{EVENTS_CHANNEL}"]
+    assert recorded == [deleted]
+
+
 # --------------------------------------------------------------------------- a recorder
 
 
@@ -461,6 +553,69 @@ def test_a_recording_process_over_its_budget_stops_and_ends_its_file(tmp_path: P
     assert stats.messages == len(beats) + 1  # and the event, written last
     events = [r.value for r in recording.records() if r.topic == f"/{EVENTS_CHANNEL}"]
     assert events == [stopped]
+
+
+def _no_disk_work_here(monkeypatch: pytest.MonkeyPatch) -> None:
+    """From now on this process may neither delete a file nor list a folder."""
+    here = os.getpid()
+
+    def refused(*args: object, **kwargs: object) -> None:
+        raise AssertionError(f"the runtime's process {here} touched the folder: {args}")
+
+    monkeypatch.setattr(os, "unlink", refused)
+    monkeypatch.setattr(os, "remove", refused)
+    monkeypatch.setattr(os, "scandir", refused)
+    monkeypatch.setattr(os, "listdir", refused)
+
+
+@pytest.mark.slow
+def test_a_recording_process_deletes_in_its_own_process_and_reports_here(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from whexar.record.sidecar import RecorderProcess
+
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    olds = [folder / "b.mcap", folder / "a.mcap", folder / "c.mcap"]
+    for k, old in enumerate(olds):
+        old.write_bytes(b"x" * (1000 + k))
+        os.utime(old, (k + 1, k + 1))
+    path = folder / "now.mcap"
+    guard = BudgetGuard(Budget(max_age_s=DAY), path, folder, period_s=0)
+    _no_disk_work_here(monkeypatch)
+    recorder = RecorderProcess(path, guard=guard, flush_period_s=0.01)
+    seq = 0
+    deadline = monotonic() + 20.0
+    while len(recorder.events) < 3:  # the run goes on; the deletions come when done
+        recorder("beats", _beat(seq))
+        seq += 1
+        recorder.write_pending()
+        recorder.keep_budget()
+        wait_until(monotonic() + 0.005)
+        assert monotonic() < deadline, "the recording process never reported"
+    assert not any(old.exists() for old in olds)
+    deleted = [e for e in recorder.events if isinstance(e, RecordingDeleted)]
+    assert deleted == recorder.events
+    assert [(e.path, e.size_bytes, e.source) for e in deleted] == [
+        (str(old), 1000 + k, "recorder")
+        for k, old in enumerate(olds)  # the oldest first
+    ]
+    assert "older than [recording] max_age_days = 1" in deleted[0].reason
+    recorder.close()
+    recorded = [r.value for r in Recording(path).records() if r.topic == f"/{EVENTS_CHANNEL}"]
+    assert recorded == recorder.events
+    # Closed at once: what the first check did is still told, here and in the file.
+    late = folder / "late.mcap"
+    late.write_bytes(b"x" * 77)
+    os.utime(late, (1, 1))
+    other = folder / "other.mcap"
+    again = RecorderProcess(other, guard=BudgetGuard(Budget(max_age_s=DAY), other, folder))
+    again.close()
+    (told,) = again.events
+    assert isinstance(told, RecordingDeleted)
+    assert (told.path, told.size_bytes) == (str(late), 77)
+    recorded = [r.value for r in Recording(other).records() if r.topic == f"/{EVENTS_CHANNEL}"]
+    assert recorded == [told]
 
 
 class _Live:

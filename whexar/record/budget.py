@@ -15,6 +15,14 @@ and answers the recorder, which checks before it writes anything and then every
 :class:`~whexar.actors.messages.RecordingDeleted` and
 :class:`~whexar.actors.messages.RecordingStopped` events.
 
+Where the checks run: never in the control loop, since listing the folder and deleting
+a large file take milliseconds (deleting a 100 MB file stalled the loop by 6.5 ms). A
+recorder in a process of its own (:mod:`whexar.record.sidecar`, what ``whexar sim`` and
+``whexar run`` record with) hands the guard's description (:meth:`BudgetGuard.describe`)
+to that process, which keeps the budget and reports each :class:`Plan` that acts
+(:meth:`Plan.to_json`); an in-process recorder (a live view, the tests) runs its checks
+on a thread of their own (:class:`GuardThread`), its first before the file is made.
+
 The rules, in order; every deletion takes the oldest first (by last change):
 
 1. only recordings count and only they are ever deleted: ``*.mcap`` files directly in
@@ -34,7 +42,7 @@ The budget covers the recordings folder (:func:`recordings_folder`). A recording
 written elsewhere (``--record FILE``) deletes nothing, but stops all the same when it
 alone passes ``max_total_mb`` or its disk runs low.
 
-Cost: a check between cycles reads the size of the recording being written and the
+Cost: a check reads the size of the recording being written and the
 disk's free space, two system calls; the folder is listed at the start, and again only
 when the budget is passed (it asks for deletions or a stop), before anything is done.
 """
@@ -44,9 +52,10 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Collection, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Final, Protocol
+from typing import TYPE_CHECKING, Any, Final, Protocol
 
 from whexar.runtime.clock import monotonic, wall_time
 
@@ -63,6 +72,7 @@ __all__ = [
     "Deletion",
     "Disk",
     "FileInfo",
+    "GuardThread",
     "LocalDisk",
     "Plan",
     "is_recording",
@@ -160,6 +170,25 @@ class Plan:
     def acts(self) -> bool:
         """Something is to be done."""
         return bool(self.deletions) or self.stop is not None
+
+    def to_json(self) -> dict[str, Any]:
+        """The plan as JSON values (a recording process tells its runtime what it did)."""
+        return {
+            "deletions": [
+                [str(d.file.path), d.file.size, d.file.mtime, d.reason] for d in self.deletions
+            ],
+            "stop": self.stop,
+        }
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> Plan:
+        """The plan :meth:`to_json` made."""
+        deletions = tuple(
+            Deletion(FileInfo(Path(path), int(size), float(mtime)), str(reason))
+            for path, size, mtime, reason in data["deletions"]
+        )
+        stop = data["stop"]
+        return cls(deletions, None if stop is None else str(stop))
 
 
 def is_recording(path: Path) -> bool:
@@ -343,6 +372,31 @@ class BudgetGuard:
         """A check is due (``period_s`` of wall time since the last)."""
         return monotonic() - self._last >= self.period_s
 
+    def describe(self) -> dict[str, Any]:
+        """What makes this guard again elsewhere (:meth:`described`), as JSON values: a
+        recording process keeps the budget of its recording on the local disk."""
+        if not isinstance(self.disk, LocalDisk):
+            raise TypeError("only a guard of the local disk can be described")
+        b = self.budget
+        return {
+            "budget": [b.max_total_bytes, b.max_age_s, b.min_free_bytes],
+            "path": str(self.path),
+            "folder": None if self.folder is None else str(self.folder),
+            "period_s": self.period_s,
+        }
+
+    @classmethod
+    def described(cls, data: dict[str, Any]) -> BudgetGuard:
+        """The guard :meth:`describe` described, on the local disk."""
+        total, age, free = data["budget"]
+        folder = data["folder"]
+        return cls(
+            Budget(total, age, free),
+            data["path"],
+            None if folder is None else Path(folder),
+            period_s=float(data["period_s"]),
+        )
+
     def check(self) -> Plan:
         """Keep the budget now: delete what :func:`plan` says (deletions that fail are
         left out, and kept from then on) and return what was deleted and whether the
@@ -407,3 +461,45 @@ class BudgetGuard:
         recordings = [f for f in self._others if is_recording(f.path)]
         self._total = sum(f.size for f in recordings)
         self._oldest = min((f.mtime for f in recordings), default=float("inf"))
+
+
+class GuardThread:
+    """Runs a :class:`BudgetGuard`'s checks on a thread of their own, for a recorder in
+    the runtime's process: :meth:`poll`, called between control cycles, never waits on
+    the disk. Listing and deleting are system calls that let go of the interpreter
+    lock; deciding (:func:`plan`, 2–4 ms for 1,000 recordings) holds it, and may delay
+    the event loop by up to the interpreter's switch interval (5 ms) each time the
+    budget is passed."""
+
+    def __init__(self, guard: BudgetGuard) -> None:
+        self.guard = guard
+        self._pool: ThreadPoolExecutor | None = None
+        self._running: Future[Plan] | None = None
+        self._stopped = False
+
+    def poll(self) -> list[Plan]:
+        """The plans of the checks done since the last call; starts the next check when
+        one is due (none after a plan that stops the recording). Raises what a check
+        raised."""
+        found: list[Plan] = []
+        running = self._running
+        if running is not None:
+            if not running.done():
+                return found
+            self._running = None
+            found.append(running.result())
+            self._stopped = found[-1].stop is not None
+        if not self._stopped and self.guard.due():
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(1, thread_name_prefix="whexar-budget")
+            self._running = self._pool.submit(self.guard.check)
+        return found
+
+    def finish(self) -> list[Plan]:
+        """Wait for the check under way, if any, and end the thread; its plan."""
+        running, self._running = self._running, None
+        self._stopped = True
+        found = [] if running is None else [running.result()]
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+        return found

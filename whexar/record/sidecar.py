@@ -38,10 +38,21 @@ A full disk: the child's recorder ends the file at its last whole record, as ful
 the disk lets (:class:`~whexar.record.writer.Recorder`), writes its report and exits at
 once; the runtime's next send finds the pipe closed and reads why, and its
 :meth:`~whexar.record.writer.HandOver.keep_budget` makes that a
-:class:`~whexar.actors.messages.RecordingStopped` event. The recordings' budget is kept
-on the runtime's side, where the events are (:mod:`whexar.record.budget`); a stop for
-it is one more entry, after which the child ends the file saying why, and the pipe
-closes.
+:class:`~whexar.actors.messages.RecordingStopped` event.
+
+The recordings' budget (:mod:`whexar.record.budget`) is kept by the child, so that the
+control loop never lists the folder nor deletes a file: the runtime describes its guard
+in the first frame; the child checks once before it opens its file (old recordings go
+before anything is written), then every ``CHECK_PERIOD_S`` between frames (at most one
+``flush_period_s`` late: it wakes that often), and tells each plan that acts as one JSON
+line on its standard output. The runtime reads those lines without waiting in
+:meth:`~RecorderProcess.keep_budget`, every :data:`PACK_PERIOD_S`, and makes them the
+events, where the runtime's other events are: a deletion is reported at most one pack
+period after the child made it. A stop is one more entry after that event, after which
+the child ends the file saying why, and the pipe closes; the child writes on until the
+entry comes (one pack period of the run more). At :meth:`~RecorderProcess.close` the
+runtime asks the child for its last plans and waits for its answer: what a check did
+after the runtime's last look is still reported, to this recorder and in the file.
 
 Bounded memory: the buffer holds ``max_pending`` entries and the unsent frames
 ``max_unsent_bytes`` (a child that cannot keep up, or has not started yet: the pipe
@@ -70,7 +81,7 @@ from typing import Any, Final
 
 import msgspec
 
-from whexar.record.budget import BudgetGuard
+from whexar.record.budget import BudgetGuard, Plan
 from whexar.record.encoding import RecordingError, type_path
 from whexar.record.writer import (
     _LINK,
@@ -108,7 +119,7 @@ _F_SETPIPE_SZ: Final = getattr(fcntl, "F_SETPIPE_SZ", 1031)
 _FRAME: Final = struct.Struct("<I")  # a frame: its length, then one msgpack array
 
 # Kinds of entries in a frame: (kind, …) arrays; the hand-over's three, then these.
-_TYPE, _DESCRIPTION, _FAILED, _DROPPED, _STOP = range(_TRANSFORM + 1, _TRANSFORM + 6)
+_TYPE, _DESCRIPTION, _FAILED, _DROPPED, _STOP, _QUIET = range(_TRANSFORM + 1, _TRANSFORM + 7)
 
 
 class RecorderProcess(HandOver):
@@ -117,8 +128,9 @@ class RecorderProcess(HandOver):
     ``metadata``, ``attachments``, ``guard`` and ``options`` (``chunk_size``,
     ``flush_period_s``, ``compression``, ``joint_states``, ``event_log``) as
     :class:`Recorder`'s; there is no live view (it needs the messages in this process:
-    use :class:`Recorder`). The budget is kept here, where the events are: the
-    recording process only writes. ``max_pending`` bounds the buffer between
+    use :class:`Recorder`). The budget ``guard`` describes (its disk the local one) is
+    kept by the recording process, which tells this one what it did: the events are
+    made here, where the runtime is. ``max_pending`` bounds the buffer between
     :meth:`write_pending` calls and ``max_unsent_bytes`` the packed frames the pipe has
     not taken yet. ``opener`` (``module:name``) is the callable the recording process
     opens its file with, as :class:`Recorder`'s ``opener`` (a test's full disk).
@@ -146,7 +158,12 @@ class RecorderProcess(HandOver):
         self.path = Path(path)
         self.max_pending = max_pending
         self.max_unsent_bytes = max_unsent_bytes
-        self._start_budget(guard)  # before the file exists: old recordings go first
+        self._start_budget(None)  # kept by the recording process: none of it here
+        self._guard = guard
+        try:
+            budget = None if guard is None else guard.describe()
+        except TypeError as exc:
+            raise RecordingError(f"a recording process keeps no such budget: {exc}") from None
         try:  # a path that cannot be written is the caller's error, now, not the child's
             with open(self.path, "wb"):
                 pass
@@ -167,6 +184,10 @@ class RecorderProcess(HandOver):
         self._final: RecorderStats | None = None
         self._report: dict[str, Any] | None = None
         """What the child said as it ended (its statistics, its failure), once read."""
+        self._heard = bytearray()
+        """What the child said so far, up to the end of a line not yet come."""
+        self._quiet = False
+        """The child said it keeps the budget no more (:meth:`_last_checks`)."""
 
         self._child = subprocess.Popen(
             [sys.executable, "-m", "whexar.record.sidecar"],
@@ -174,7 +195,10 @@ class RecorderProcess(HandOver):
             stdout=subprocess.PIPE,
         )
         assert self._child.stdin is not None
+        assert self._child.stdout is not None
         self._fd = self._child.stdin.fileno()
+        self._said = self._child.stdout.fileno()
+        os.set_blocking(self._said, False)  # read between cycles: never wait
         with contextlib.suppress(OSError):
             fcntl.fcntl(self._fd, _F_SETPIPE_SZ, PIPE_BYTES)
         os.set_blocking(self._fd, False)
@@ -184,6 +208,7 @@ class RecorderProcess(HandOver):
             "attachments": dict(attachments or {}),
             "options": options,
             "opener": opener,
+            "budget": budget,
             # Where this process finds modules, for the message types of extensions
             # (appended by the child, after its own: nothing here shadows its start-up).
             "sys_path": [p for p in sys.path if p],
@@ -333,6 +358,9 @@ class RecorderProcess(HandOver):
         if self._report is not None:
             return
         timeout = CLOSE_TIMEOUT_S if wait else GONE_WAIT_S
+        stdout = self._child.stdout
+        if stdout is not None and not stdout.closed:
+            os.set_blocking(self._said, True)
         try:
             out, _ = self._child.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -340,9 +368,11 @@ class RecorderProcess(HandOver):
             self._child.communicate()
             out = b""
             self._broken = f"the recording process did not end the file in {timeout:g} s"
+        self._heard += out or b""
         found: dict[str, Any] = {}
-        with contextlib.suppress(ValueError):
-            found = json.loads(out or b"{}")
+        for said in self._lines(final=True):
+            if "stats" in said or "failure" in said:
+                found = said
         self._report = found
         if "stats" in found:
             stats = RecorderStats(**found["stats"])
@@ -352,6 +382,76 @@ class RecorderProcess(HandOver):
                 pending=0,
                 max_pending=max(stats.max_pending, self._max_pending),
             )
+
+    # ------------------------------------------------------------------ the budget
+
+    def _take_plans(self) -> list[Plan]:
+        """What the child's checks did, as far as it has said (one read that does not
+        wait: nothing, most times)."""
+        self._hear()
+        return super()._take_plans()
+
+    def _hear(self, timeout: float = 0.0) -> bool:
+        """Read what the child said, waiting up to ``timeout`` for it; ``False`` once it
+        closed its standard output (it ended)."""
+        stdout = self._child.stdout
+        if stdout is None or stdout.closed:
+            return False
+        if timeout > 0 and not select.select([self._said], [], [], timeout)[0]:
+            return True
+        going = True
+        try:
+            while chunk := os.read(self._said, 1 << 16):
+                self._heard += chunk
+            going = False  # the end of its output
+        except BlockingIOError:
+            pass  # all it said so far
+        except OSError:
+            going = False
+        self._lines(final=False)
+        return going
+
+    def _lines(self, *, final: bool) -> list[dict[str, Any]]:
+        """The whole lines heard (with ``final``, the rest too): the child's plans go to
+        be reported, its acknowledgement is noted; the others are returned."""
+        heard = self._heard
+        end = len(heard) if final else heard.rfind(b"\n") + 1
+        lines = bytes(heard[:end]).splitlines()
+        del heard[:end]
+        others = []
+        for line in lines:
+            try:
+                said = json.loads(line)
+            except ValueError:
+                continue
+            if not isinstance(said, dict):
+                continue
+            if "plan" in said:
+                self._plans.append(Plan.from_json(said["plan"]))
+            elif "quiet" in said:
+                self._quiet = True
+            else:
+                others.append(said)
+        return others
+
+    def _last_checks(self) -> None:
+        """At :meth:`close`: tell the child to keep the budget no more and wait for its
+        answer, which follows what its last check said; then report every plan heard,
+        into the file (the runtime has ended)."""
+        live = self._guard is not None and self._stopped is None and self._broken is None
+        if live and self._child.stdin is not None:
+            self.write_pending()
+            self._queue(self._encoder.encode([(_QUIET,)]))
+            os.set_blocking(self._fd, True)
+            while self._out and self._broken is None:
+                self._send()
+            deadline = monotonic() + CLOSE_TIMEOUT_S
+            while not self._quiet and self._broken is None and monotonic() < deadline:
+                if not self._hear(timeout=deadline - monotonic()):
+                    break
+        plans, self._plans = self._plans, []
+        if self._stopped is None:
+            self._report_plans(None, plans)
 
     # ------------------------------------------------------------------ end
 
@@ -417,6 +517,7 @@ class RecorderProcess(HandOver):
             if self._broken is not None and not self._reported:
                 raise RecordingError(f"recording {self.path} failed: {self._broken}")
             return self.stats
+        self._last_checks()
         self.write_pending()
         self._closed = True
         if self._child.stdin is not None:
@@ -545,6 +646,10 @@ class _StopEntry(msgspec.Struct, array_like=True, tag=_STOP):
     reason: str
 
 
+class _QuietEntry(msgspec.Struct, array_like=True, tag=_QUIET):
+    pass
+
+
 _Entry = (
     _MessageEntry
     | _LinkEntry
@@ -554,6 +659,7 @@ _Entry = (
     | _FailedEntry
     | _DroppedEntry
     | _StopEntry
+    | _QuietEntry
 )
 
 
@@ -564,6 +670,8 @@ class _Child:
         self.recorder = recorder
         self.frames = msgspec.msgpack.Decoder(list[_Entry])
         self.types: dict[str, msgspec.msgpack.Decoder[Any] | str] = {}
+        self.quiet = False
+        """The runtime asked for the budget's last plans (it is closing)."""
 
     def frame(self, data: bytes) -> None:
         recorder = self.recorder
@@ -594,6 +702,8 @@ class _Child:
                 recorder.dropped_elsewhere(entry.count)
             elif entry.__class__ is _StopEntry:
                 recorder.stop(entry.reason)  # its budget: the file ends now, saying why
+            elif entry.__class__ is _QuietEntry:
+                self.quiet = True
 
     def message(self, entry: _MessageEntry) -> None:
         decoder = self.types.get(entry.name, f"type {entry.name} was never declared")
@@ -631,6 +741,8 @@ def main() -> int:
         return 1  # the parent went before it began
     start = msgspec.msgpack.decode(first)
     sys.path.extend(p for p in start["sys_path"] if p not in sys.path)
+    budget = _Budget(start.get("budget"))
+    budget.check()  # before the file is opened: old recordings go first
     try:
         opener = None if start.get("opener") is None else _opener(start["opener"])
         recorder = Recorder(
@@ -641,7 +753,7 @@ def main() -> int:
             **start["options"],
         )
     except RecordingError as exc:
-        sys.stdout.write(json.dumps({"failure": str(exc)}))
+        _say({"failure": str(exc)})
         return 1
     child = _Child(recorder)
     while recorder.failure is None:
@@ -651,14 +763,53 @@ def main() -> int:
                 break
             child.frame(frame)
         recorder.write_pending()  # and, every flush period, a flush
+        if child.quiet:
+            budget.quiet()
+        elif recorder.stopped is None:
+            budget.check()
     # A full disk ends the recording at once (the file ended as far as the disk let
     # it): the runtime learns it from the pipe, closed as this process ends.
     with contextlib.suppress(RecordingError):
         recorder.close()
     failure, stats = recorder.failure, recorder.stats
     stats = dataclasses.replace(stats, process_cpu_s=time.process_time())
-    sys.stdout.write(json.dumps({"stats": dataclasses.asdict(stats), "failure": failure}))
+    _say({"stats": dataclasses.asdict(stats), "failure": failure})
     return 0
+
+
+class _Budget:
+    """The child's side of the budget: the runtime's guard, described, checked when due
+    (no more after a plan that stops the recording, nor once the runtime asked for the
+    last plans), each plan that acts told as a line."""
+
+    def __init__(self, described: dict[str, Any] | None) -> None:
+        self.guard = None if described is None else BudgetGuard.described(described)
+        self.checking = self.guard is not None
+        self.said_quiet = False
+
+    def check(self) -> None:
+        """Keep the budget, if a check is due; tell what was done."""
+        guard = self.guard
+        if guard is None or not self.checking or not guard.due():
+            return
+        found = guard.check()
+        if found.acts:
+            _say({"plan": found.to_json()})
+        if found.stop is not None:
+            self.checking = False
+
+    def quiet(self) -> None:
+        """The runtime is closing: no more checks; say so, after the last plan."""
+        self.checking = False
+        if self.guard is not None and not self.said_quiet:
+            _say({"quiet": True})
+            self.said_quiet = True
+
+
+def _say(what: dict[str, Any]) -> None:
+    """One line to the runtime on standard output (JSON), at once."""
+    sys.stdout.write(json.dumps(what) + "\n")
+    sys.stdout.flush()
 
 
 if __name__ == "__main__":

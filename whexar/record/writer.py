@@ -19,14 +19,15 @@ Nothing is dropped on the normal path. Only if the owner stops draining does the
 buffer reach ``max_pending``; then the oldest entries go, each one counted: the count
 is logged on ``/log`` when writing resumes and stored in ``whexar.end``.
 
-Disks: every recording keeps a budget (:mod:`whexar.record.budget`): checked before
-the file is made and between writes, it deletes older recordings, and stops the
-recording when it cannot be kept (:meth:`HandOver.keep_budget`, which :meth:`~HandOver.run`
-calls; each deletion and a stop is an event). A write that fails (a full disk) stops
-the recording too: the file is written unbuffered, so the recorder knows where its last
-whole record ends; it cuts the file back there and ends it as fully as the disk lets
-(:meth:`_McapFile.salvage`): every message of a whole chunk stays readable. Either way
-the hand-over lets go of what follows, and the robot runs on.
+Disks: every recording keeps a budget (:mod:`whexar.record.budget`): checked before the
+file is made and between writes, it deletes older recordings, and stops the recording
+when it cannot be kept (:meth:`HandOver.keep_budget`, which :meth:`~HandOver.run` calls;
+each deletion and a stop is an event; the folder is listed and files deleted elsewhere,
+never in the control loop: a recording process, or a thread). A write that fails (a full
+disk) stops the recording too: the file is written unbuffered, so the recorder knows
+where its last whole record ends; it cuts the file back there and ends it as fully as
+the disk lets (:meth:`_McapFile.salvage`): every message of a whole chunk stays
+readable. Either way the hand-over lets go of what follows, and the robot runs on.
 
 What a recording holds
 ----------------------
@@ -107,7 +108,7 @@ from mcap.writer import LIBRARY_IDENTIFIER
 from whexar import __version__
 from whexar.actors.messages import RecordingDeleted, RecordingStopped, ServoStates
 from whexar.record import foxglove
-from whexar.record.budget import BudgetGuard, Plan
+from whexar.record.budget import BudgetGuard, GuardThread, Plan
 from whexar.record.encoding import (
     LINK_SCHEMA,
     LINK_SCHEMA_NAME,
@@ -309,6 +310,7 @@ class HandOver:
     # ------------------------------------------------------------------ the budget, stopping
 
     _guard: BudgetGuard | None
+    _checks: GuardThread | None
     _stopped: str | None
     _reported: bool
     _plans: list[Plan]
@@ -320,13 +322,34 @@ class HandOver:
 
     def _start_budget(self, guard: BudgetGuard | None) -> None:
         """The first check of the budget (:mod:`whexar.record.budget`), before the file
-        exists: old recordings go before anything is written; :meth:`run` reports it."""
+        exists: old recordings go before anything is written (here, before the runtime
+        runs); :meth:`run` reports it. The later checks run on a thread of their own
+        (:class:`~whexar.record.budget.GuardThread`): never in the control loop."""
         self._guard = guard
         self._stopped = None
         self._reported = False
         self._now = 0.0
         self.events = []
         self._plans = [] if guard is None else [guard.check()]
+        self._checks = None if guard is None else GuardThread(guard)
+
+    def _take_plans(self) -> list[Plan]:
+        """The budget's plans not yet reported (the first check's, then the thread's;
+        a recording process's, told over its pipe); never waits."""
+        plans, self._plans = self._plans, []
+        if self._checks is not None:
+            plans += self._checks.poll()
+        return plans
+
+    def _last_checks(self) -> None:
+        """At the end (:meth:`close`): the check under way finished, and what it and any
+        not yet reported did, as events handed to this recorder only (the runtime has
+        ended): so the file tells of every deletion, a stop ends it all the same."""
+        plans, self._plans = self._plans, []
+        if self._checks is not None:
+            plans += self._checks.finish()
+        if self._stopped is None:
+            self._report_plans(None, plans)
 
     @property
     def failure(self) -> str | None:
@@ -357,10 +380,11 @@ class HandOver:
         self._pending.clear()
 
     def keep_budget(self, runtime: Runtime | None = None) -> None:
-        """Report what the budget's checks did, check it when due, and stop the
-        recording when it cannot be kept or the file cannot be written any more; each
-        deletion and a stop is an event on ``runtime``'s ``events`` channel (without a
-        runtime, handed to this recorder only). :meth:`run` calls it after every write."""
+        """Report what the budget's checks did, start the next check when due (elsewhere:
+        never waits on the disk), and stop the recording when it cannot be kept or the
+        file cannot be written any more; each deletion and a stop is an event on
+        ``runtime``'s ``events`` channel (without a runtime, handed to this recorder
+        only). :meth:`run` calls it after every write."""
         if runtime is not None:
             try:
                 self._now = runtime.clock.now()
@@ -368,16 +392,18 @@ class HandOver:
                 return
         if self._stopped is not None:
             return
-        if self._broken is not None:  # a full disk, the recording process gone
+        self._report_plans(runtime, self._take_plans())
+        if self._broken is not None and self._stopped is None:  # a full disk, the process gone
             self._stopped = self._broken
             self._reported = True
             self._let_go()
             self._emit(runtime, RecordingStopped, reason=f"cannot write: {self._broken}")
-            return
-        plans, self._plans = self._plans, []
-        if self._guard is not None and self._guard.due():
-            plans.append(self._guard.check())
+
+    def _report_plans(self, runtime: Runtime | None, plans: list[Plan]) -> None:
+        """Each deletion an event; a stop an event, then the recording stopped."""
         for found in plans:
+            if self._stopped is not None:
+                return
             for d in found.deletions:
                 self._emit(
                     runtime,
@@ -386,7 +412,7 @@ class HandOver:
                     size_bytes=d.file.size,
                     reason=d.reason,
                 )
-            if found.stop is not None and self._stopped is None:
+            if found.stop is not None and self._broken is None:
                 # Emitted first, so that it is the recording's last message.
                 self._emit(runtime, RecordingStopped, reason=found.stop)
                 self.stop(found.stop)
@@ -848,6 +874,7 @@ class Recorder(HandOver):
         whole record), unless :meth:`keep_budget` reported that as a
         :class:`~whexar.actors.messages.RecordingStopped` event.
         """
+        self._last_checks()  # which may stop the recording
         if self._closed:
             return self.stats
         self.write_pending()

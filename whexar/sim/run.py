@@ -448,6 +448,10 @@ def simulate(
                 recorder.close()
     if not keep_log:  # reading an empty log would answer wrong, not fail
         result = dataclasses.replace(result, log=NoMessageLog())
+    events = series.events
+    if recorder is not None:  # what the budget did after the runtime's last look at it
+        seen = {id(e) for e in events}
+        events = [*events, *(e for e in recorder.events if id(e) not in seen)]
     return SimResult(
         samples=samples,
         run=result,
@@ -455,7 +459,7 @@ def simulate(
         wall_s=monotonic() - wall,
         duration_s=duration,
         mass_kg=cfg.robot.mass_kg,
-        events=series.events,
+        events=events,
         recording=None if recorder is None else recorder.path,
         recorder_stats=None if recorder is None else recorder.stats,
         series=series,
