@@ -86,6 +86,16 @@ def test_the_shipped_file_loads_with_the_thesis_figures() -> None:
         ("ride", False): 32,
         ("stand", False): 32,
     }
+    # Table 6.6 tried 0…50° in steps: the next inclination, which each did not manage.
+    failed = {(s.mode, s.trochanter): s.failed_deg for s in ref.steepest.slopes}
+    assert failed == {
+        ("walk", True): 40,
+        ("ride", True): 50,
+        ("stand", True): None,
+        ("walk", False): 32,
+        ("ride", False): 40,
+        ("stand", False): 40,
+    }
     assert (ref.table_6_6.saving.slope_deg, ref.table_6_6.saving.thesis_pct) == (32, 23.0)
     assert ref.table_6_6.slopes_deg == (0, 14, 23, 32, 40, 50)
     assert ref is not reference()  # load_reference reads afresh; reference() once
@@ -153,6 +163,10 @@ def test_every_explanation_named_exists_and_says_something() -> None:
         (
             lambda d: d["steepest"]["slopes"][1].update(mode="walk"),
             "steepest.slopes[1].mode = 'walk': a mode and trochanter no other slope has",
+        ),
+        (
+            lambda d: d["steepest"]["slopes"][0].update(failed_deg=32),
+            "steepest.slopes[0].failed_deg = 32: above thesis_deg (32)",
         ),
     ],
 )

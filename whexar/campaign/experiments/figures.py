@@ -431,19 +431,64 @@ def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
             elif found is None and tested:
                 note = f"The lowest slope tested ({tested[0]:g}°) already failed."
         with_ = "with" if s.trochanter else "without"
+        name = f"steepest slope {VERBS[s.mode]}, {with_} trochanter"
+        why = ref.explain(spec.why)
         out.append(
             _figure(
-                f"steepest slope {VERBS[s.mode]}, {with_} trochanter",
+                name,
                 "°",
                 s.thesis_deg,
                 found,
                 source=spec.source,
-                why=ref.explain(spec.why),
+                why=why,
                 tolerance=tolerance,
                 note=note,
             )
         )
+        out.append(
+            _bracket(
+                name,
+                s.thesis_deg,
+                s.failed_deg,
+                found,
+                source=spec.source,
+                tried=ref.table_6_6.slopes_deg,
+            )
+        )
     return out
+
+
+def _bracket(
+    name: str,
+    managed: float,
+    failed: float | None,
+    found: float | None,
+    *,
+    source: str,
+    tried: Sequence[float],
+) -> Figure:
+    """The steepest slope against Table 6.6's bracket: of the inclinations ``tried``, the
+    thesis's robot managed ``managed`` and not ``failed`` (``None``: the steepest
+    tried)."""
+    thesis = f"{managed:g}–{failed:g}" if failed is not None else f"≥ {managed:g}"
+    listed = ", ".join(f"{t:g}" for t in tried)
+    said = f"The thesis tried only {listed}° (Table 6.6): its robot managed {managed:g}° and " + (
+        f"not {failed:g}°, so its limit lies in between."
+        if failed is not None
+        else "that was the steepest tried, so its limit lies above."
+    )
+    if found is None:
+        where = ""
+    elif found < managed:
+        where = f" The simulation's is {100 * (managed - found) / managed:.0f} % below it."
+    elif failed is not None and found >= failed:
+        where = (
+            f" The simulation's reaches {failed:g}°, which the thesis's robot did not: "
+            f"{100 * (found - failed) / failed:.0f} % above it."
+        )
+    else:
+        where = " The simulation's lies inside it."
+    return Figure(f"{name}: Table 6.6's bracket", "°", thesis, found, source, said + where)
 
 
 def figures(rows: Sequence[Row], ref: Reference | None = None) -> list[Figure]:

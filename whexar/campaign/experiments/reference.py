@@ -236,6 +236,10 @@ class SteepestSlope(Section):
     """The campaign's runs for it: a tilting board's (their ``tilt_limit_deg``, the board's
     angle where the run failed, as the thesis found it), or a sweep of fixed slopes."""
     thesis_deg: ThesisNumber
+    failed_deg: ThesisNumber | None = None
+    """The next inclination of Table 6.6 (0, 14, 23, 32, 40, 50°) that the thesis's robot
+    did not manage, ``None`` when it managed the steepest tested: the thesis's limit lies
+    from ``thesis_deg`` up to this."""
 
 
 class Steepest(Section):
@@ -305,6 +309,10 @@ class Reference(CheckedSection):
             if pair in pairs[:i]:
                 allowed = "a mode and trochanter no other slope has"
                 found.append(Problem(f"steepest.slopes[{i}].mode", pair[0], allowed))
+        for i, slope in enumerate(self.steepest.slopes):
+            if slope.failed_deg is not None and slope.failed_deg <= slope.thesis_deg:
+                above = f"above thesis_deg ({slope.thesis_deg:g})"
+                found.append(Problem(f"steepest.slopes[{i}].failed_deg", slope.failed_deg, above))
         return found
 
 
