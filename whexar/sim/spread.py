@@ -14,7 +14,7 @@ each within the amplitude its datasheet gives (the constants below; docs/sim.md,
 * the ground: each wheel's sliding friction;
 * the masses: every link of the robot heavier or lighter, the body's centre of mass
   moved;
-* the servos: each joint's gear backlash (a dead zone of the position loop);
+* the servos: each joint's gear backlash (play between the motor and the horn);
 * the USB adapter: each reply's delay jittered by the latency timer.
 
 :func:`apply` puts a spread into a world before it runs; the draws that go on
@@ -161,8 +161,8 @@ def apply(spread: Spread, world: SimWorld) -> None:
             m.body_inertia[b] *= f
         m.body_ipos[base] += spread.com_shift_m
     if spread.backlash_rad:
-        # The motor turns through the gears' play before the horn moves: the position
-        # loop sees no error within half of it either way.
+        # The gears' play, between the motor and the horn that the encoder reads
+        # (SimWorld._through_the_play).
         world.dead_zone_rad = np.asarray(spread.backlash_rad) / 2
     readings = np.random.default_rng([spread.seed, _READINGS])
     world.sense_hook = lambda w: _read(spread, w, readings)

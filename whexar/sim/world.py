@@ -162,6 +162,29 @@ class _JointDynamics:
         motion.acceleration = world.accel_ticks[k]
 
 
+def gear_play(
+    tau: np.ndarray,
+    free_w: np.ndarray,
+    w: np.ndarray,
+    play: np.ndarray,
+    half: np.ndarray,
+    h: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The torque that reaches each horn through gears with play ``±half`` (rad), and
+    where the motor's side sits in the play after a step of ``h`` s.
+
+    An MX servo's encoder (AS5045) reads the horn, so its position loop sees the horn's
+    error however the gears sit: the play is in the drive, not in the loop. While the
+    motor's side is inside it, the motor turns unloaded at the speed its duty gives
+    (``free_w``, output scale) and no torque reaches the horn; at the flank its torque
+    pushes on, the gears are engaged and the torque acts. A load that keeps one flank
+    engaged meets no play; a torque that changes sign is lost while the motor crosses it
+    (0.9 ms at full duty for the MX's 20 arcmin)."""
+    play = np.minimum(np.maximum(play + (free_w - w) * h, -half), half)
+    engaged = ((play >= half) & (tau >= 0.0)) | ((play <= -half) & (tau <= 0.0))
+    return np.where(engaged, tau, 0.0), play
+
+
 class SimWorld:
     """A MuJoCo model of WHexaR driving the emulated servos, board and IMU.
 
@@ -326,7 +349,10 @@ class SimWorld:
         """Called after every refresh of the sensors: the parts' spread reads them
         (:mod:`whexar.sim.spread`)."""
         self.dead_zone_rad: np.ndarray | None = None
-        """Each joint's half backlash: the position loop's dead zone (``None``: none)."""
+        """Each joint's half backlash, the gears' play either way (``None``: none); see
+        :meth:`_through_the_play`."""
+        self._play = np.zeros(n)
+        """Where the motor's side of the gears sits in the play, relative to the horn."""
         if board is not None:
             board.script = self._board_inputs
         mujoco.mj_forward(model, self.data)
@@ -514,16 +540,24 @@ class SimWorld:
         free = self._velocity & (np.abs(duty_velocity) < MAX_DUTY)  # no wind-up saturated
         self._integral = np.where(free, stepped, self._integral)
         lag = self._desired - q
-        if self.dead_zone_rad is not None:  # gear backlash (whexar.sim.spread)
-            lag = np.sign(lag) * np.maximum(np.abs(lag) - self.dead_zone_rad, 0.0)
         duty = np.where(self._velocity_mode, duty_velocity, self._kp * lag)
         duty = np.minimum(np.maximum(duty, -MAX_DUTY), MAX_DUTY)
         # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft; torque off: coasting.
         tau: np.ndarray = (duty * self._drive_gain - self._emf_gain * w) * self._on_f
+        if self.dead_zone_rad is not None:  # gear backlash (whexar.sim.spread)
+            tau = self._through_the_play(tau, duty, w, self.dead_zone_rad)
         self._torque = tau
         # What the bridges take from the line: duty × winding current (0 with torque off).
         self._bridge_a = float(np.dot(duty, tau / self._kt))
         return tau
+
+    def _through_the_play(
+        self, tau: np.ndarray, duty: np.ndarray, w: np.ndarray, half: np.ndarray
+    ) -> np.ndarray:
+        """The torque that reaches the horns through the gears' play (:func:`gear_play`)."""
+        free = duty * self._drive_gain / self._emf_gain  # the unloaded speed at this duty
+        out, self._play = gear_play(tau, free, w, self._play, half, self.h)
+        return out
 
     def _draw(self, bridge_c: float, elapsed: float) -> None:
         """Take the line's current over ``elapsed`` s from the supply; feed its voltage on."""
@@ -672,4 +706,4 @@ def _index(addresses: list[int]) -> slice | np.ndarray:
 ROBOT_GEOM_GROUP: Final = 3
 """The geom group the robot's own geoms are moved to, so that rays skip them."""
 
-__all__ = ["SENSE_PERIOD_S", "SimWorld", "fsr_counts"]
+__all__ = ["SENSE_PERIOD_S", "SimWorld", "fsr_counts", "gear_play"]
