@@ -121,16 +121,10 @@ def _bus_scan(args: argparse.Namespace) -> int:
 
 def _board_pty(cfg: RobotConfig) -> BoardPty:
     """The configuration's sensor board, emulated on its own pty (level, legs unloaded)."""
-    from whexar.sensors.board_emulator import SensorBoardEmulator
+    from whexar.actors.sensing import emulated_board
     from whexar.sensors.board_pty import BoardPty
 
-    spec = cfg.sensor_board
-    board = SensorBoardEmulator(
-        frame_rate_hz=spec.frame_rate_hz,
-        baudrate=spec.baudrate,
-        accelerometer=spec.accelerometer.fitted,
-    )
-    return BoardPty(board)
+    return BoardPty(emulated_board(cfg.sensor_board))
 
 
 def add_commands(commands: Commands) -> None:

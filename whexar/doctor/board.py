@@ -27,7 +27,6 @@ from typing import Final
 from whexar.doctor import host
 from whexar.doctor.environment import BoardPort, Environment
 from whexar.doctor.report import CheckResult, Findings, Status, fail, warn
-from whexar.errors import DeviceGoneError
 from whexar.sensors.frame import Frame, FrameDecoder, Rejected
 from whexar.sensors.usart import BOARD_BAUDRATES
 
@@ -134,8 +133,6 @@ def check_sensor_board(env: Environment, found: Findings) -> CheckResult:
 def _open(env: Environment, path: str, baudrate: int) -> BoardPort | CheckResult:
     try:
         port = env.open_board_port(path, baudrate)
-    except DeviceGoneError as exc:
-        return fail(NAME, str(exc), "plug the sensor board in; see: ls /dev/serial/by-id/")
     except OSError as exc:
         return fail(NAME, f"cannot open {path}: {host.reason(exc)}", None)
     # Bytes queued before this open (a pty, a board that did not reset) are not news.

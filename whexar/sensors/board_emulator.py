@@ -332,18 +332,25 @@ class EmulatedBoardLink:
                 continue
             command, self._command = bytes(self._command), bytearray()
             self.board.commands.append(command + b"#")
-            # As the firmware's parser (frame.cpp): blanks between commands are
-            # skipped, N has 1 to 3 digits.
-            command = command.lstrip(b" \t\r\n\x00")
-            digits = command.removeprefix(b"rate=")
-            if command.startswith(b"rate=") and digits.isdigit() and len(digits) <= 3:
-                rate = int(digits)
-                if RATE_MIN_HZ <= rate <= RATE_MAX_HZ:
-                    self._period = 1.0 / rate
-                    self.rate_hz = rate
+            rate = rate_command(command)
+            if rate is not None:
+                self._period = 1.0 / rate
+                self.rate_hz = rate
 
     async def aclose(self) -> None:
         self.closed = True
+
+
+def rate_command(command: bytes) -> int | None:
+    """The rate a host-to-board command (its bytes before ``#``) asks for, ``None`` when
+    the firmware ignores it. As the firmware's parser (frame.cpp): blanks before it are
+    skipped, N has 1 to 3 digits and lies in 10 … 50 (firmware/PROTOCOL.md)."""
+    command = command.lstrip(b" \t\r\n\x00")
+    digits = command.removeprefix(b"rate=")
+    if not (command.startswith(b"rate=") and digits.isdigit() and len(digits) <= 3):
+        return None
+    rate = int(digits)
+    return rate if RATE_MIN_HZ <= rate <= RATE_MAX_HZ else None
 
 
 def _flip_bit(data: bytes, salt: int) -> bytes:
@@ -364,4 +371,5 @@ __all__ = [
     "TrimmedMean",
     "counts_for_acceleration",
     "counts_for_distance",
+    "rate_command",
 ]

@@ -15,10 +15,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from whexar.doctor.environment import BOARD_READ_TIMEOUT_S as READ_TIMEOUT_S
+from whexar.sensors.board_emulator import rate_command
 from whexar.sensors.frame import encode_frame
-
-READ_TIMEOUT_S = 0.02
-"""What a read waits when nothing arrives, as the real port's timeout."""
 
 
 @dataclass(slots=True)
@@ -110,10 +109,10 @@ class FakeBoardPort:
                 continue
             command, self._command = bytes(self._command), bytearray()
             self.board.commands.append(command + b"#")
-            digits = command.removeprefix(b"rate=")
-            if self.board.obeys_rate and digits.isdigit() and 10 <= int(digits) <= 50:
+            rate = rate_command(command)
+            if self.board.obeys_rate and rate is not None:
                 # From the next frame on, one new period after it (firmware/PROTOCOL.md).
-                self._period = 1.0 / int(digits)
+                self._period = 1.0 / rate
         return len(data)
 
     def reset_input_buffer(self) -> None:

@@ -11,7 +11,7 @@ May import: :mod:`whexar.actors.messages`, :mod:`whexar.config`, the device link
 :mod:`whexar.sensors` and the layers below; never another actor subsystem.
 """
 
-from whexar.actors.sensing.board import SensorReader
+from whexar.actors.sensing.board import SensorReader, emulated_board
 from whexar.actors.sensing.imu import ImuReader
 
-__all__ = ["ImuReader", "SensorReader"]
+__all__ = ["ImuReader", "SensorReader", "emulated_board"]

@@ -76,7 +76,7 @@ from whexar.actors.messages import (
     SensorLinkUp,
     SensorStats,
 )
-from whexar.config import BoardBaudrate, ConfigFile, RobotConfig, load_config
+from whexar.config import BoardBaudrate, ConfigFile, RobotConfig, SensorBoardSpec, load_config
 from whexar.errors import DeviceGoneError
 from whexar.kinematics.sensing import ir_distance
 from whexar.runtime.actor import Actor, ActorParams, Output
@@ -90,6 +90,16 @@ from whexar.sensors.serial_link import ByteLink, SerialLink, TappedLink
 EMULATOR: Final = SENSOR_BOARD.scheme
 """The port name of the in-process board; ``emulator:NAME`` opens the board registered as
 NAME (:data:`~whexar.sensors.board_emulator.SENSOR_BOARD`)."""
+
+
+def emulated_board(spec: SensorBoardSpec, baudrate: int | None = None) -> SensorBoardEmulator:
+    """The board ``spec`` describes, emulated: its frame rate, its serial rate (``baudrate``
+    overrides it) and an accelerometer if one is fitted."""
+    return SensorBoardEmulator(
+        frame_rate_hz=spec.frame_rate_hz,
+        baudrate=spec.baudrate if baudrate is None else baudrate,
+        accelerometer=spec.accelerometer.fitted,
+    )
 
 
 def gravity_event(
@@ -184,12 +194,7 @@ class SensorReader(Actor):
 
     def _board(self) -> SensorBoardEmulator:
         if self.port == EMULATOR and (SENSOR_BOARD, EMULATOR) not in DEVICES:
-            spec = self.cfg.sensor_board
-            board = SensorBoardEmulator(
-                frame_rate_hz=spec.frame_rate_hz,
-                baudrate=self.baudrate,
-                accelerometer=spec.accelerometer.fitted,  # the board the configuration describes
-            )
+            board = emulated_board(self.cfg.sensor_board, self.baudrate)
             DEVICES.register(SENSOR_BOARD, EMULATOR, board)
         name = self.port.removeprefix(f"{EMULATOR}:")
         return DEVICES.get(SENSOR_BOARD, name, setting=f"port = {self.port!r}")
