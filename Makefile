@@ -5,13 +5,27 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: check test sim gl lint typecheck firmware clean
+.PHONY: check test sim gl lint typecheck firmware clean native-deps
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py whexar/bus/_wire.c
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "whexar needs Python >= 3.11")'
+	@$(MAKE) --no-print-directory native-deps
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
 	@touch $@
+
+# The compiled bus path (whexar/bus/_wire.c) needs a C compiler and Python's headers: the
+# Debian packages are installed when missing (as root). Where they cannot be, the install
+# goes on and the bus takes dynamixel-sdk's pure-Python path (the same results).
+NATIVE_DEBS := gcc python3-dev
+
+native-deps:
+	@if ! command -v cc >/dev/null 2>&1 || ! $(PYTHON) -c 'import os, sys, sysconfig; \
+		sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))'; then \
+		echo "installing $(NATIVE_DEBS) (the compiled bus path)"; \
+		(apt-get update -qq && apt-get install -y -qq $(NATIVE_DEBS)) || \
+		echo "could not install them: the bus will take dynamixel-sdk's pure-Python path"; \
+	fi
 
 # ruff, then the architecture: the import contracts in pyproject.toml (layers, no cycles).
 lint: $(STAMP)

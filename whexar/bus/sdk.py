@@ -59,6 +59,7 @@ import anyio.lowlevel
 import dynamixel_sdk as dxl
 from dynamixel_sdk.protocol2_packet_handler import TXPACKET_MAX_LEN, Protocol2PacketHandler
 
+from whexar.bus import wire
 from whexar.bus.control_table import Register
 from whexar.bus.portlock import PortLock
 from whexar.bus.protocol import ALERT, crc16
@@ -222,11 +223,21 @@ class _Capture:
 
 
 class DxlBus:
-    """Every transaction whexar makes, through dynamixel-sdk's Protocol 2.0 packet handler."""
+    """Every transaction whexar makes, through dynamixel-sdk's Protocol 2.0 packet handler.
 
-    def __init__(self, port: Port) -> None:
+    With ``native`` (the default) and :mod:`whexar.bus.wire`'s compiled path built, the
+    cycle's transactions — Sync Read, Fast Sync Read, the Sync Write packets — take that
+    path on a real port (:class:`WaitingPortHandler`) and on a port that hands replies
+    over whole (``peek()``: the emulated and the replayed ones), with the SDK's results;
+    everything else, and every other port, is the SDK's.
+    """
+
+    def __init__(self, port: Port, *, native: bool = True) -> None:
         self.port = port
         self.ph = PacketHandler()
+        self.native = native and wire.NATIVE is not None
+        """Whether the cycle's transactions take the compiled path."""
+        self._requests: dict[tuple[int, int, bool, tuple[int, ...]], bytes | None] = {}
 
     def _lost(self, exc: OSError) -> DeviceGoneError:
         """The error to raise, from ``exc``, for a port that raised it."""
@@ -288,11 +299,16 @@ class DxlBus:
         return self.send(self.prepare_sync_write(start, length, values))
 
     def prepare_sync_write(self, start: int, length: int, values: Mapping[int, bytes]) -> bytes:
-        """The Sync Write packet, built by the SDK now, to :meth:`send` later.
+        """The Sync Write packet, built now (by the SDK, or the same bytes compiled), to
+        :meth:`send` later.
 
         A cycle builds its goal writes before its reads, while the bus is busy
         anyway: once the last status arrives, the writes go out at once.
         """
+        if self.native:
+            built = wire.sync_write_request(start, length, values)
+            if built is not None:
+                return built
         param: list[int] = []
         for servo, data in values.items():
             param.append(servo)
@@ -334,6 +350,12 @@ class DxlBus:
         """
         if not ids:
             return SyncReadResult(COMM_SUCCESS, sent=[self.send(p) for p in then])
+        if self.native:
+            native = self._native_read(ids, start, length, fast, then)
+            if native is not None:
+                if len(native.sent) < len(then):
+                    native.sent = [self.send(p) for p in then]
+                return native
         try:
             result = self.ph.syncReadTx(self.port, start, length, list(ids), len(ids), fast)
             if result != COMM_SUCCESS:
@@ -352,13 +374,7 @@ class DxlBus:
         peek = getattr(self.port, "peek", None)
         if peek is None:
             return False
-        buf: bytes = peek()
-        n = 11 + length
-        return (
-            len(buf) >= n
-            and buf[-n : -n + 5] == bytes((0xFF, 0xFF, 0xFD, 0x00, last))
-            and buf[-n + 5] | (buf[-n + 6] << 8) == n - 7
-        )
+        return _tail_of(peek(), last, length)
 
     def _rx(self, ids: Sequence[int], length: int, then: Sequence[bytes] = ()) -> SyncReadResult:
         out = SyncReadResult(COMM_SUCCESS)
@@ -385,17 +401,165 @@ class DxlBus:
         )
         if result != COMM_SUCCESS:
             return SyncReadResult(result, failed=ids[0])
-        out = SyncReadResult(COMM_SUCCESS)
-        raw = bytes(raw)
-        step = length + 4
-        for k, expected in enumerate(ids):
-            seg = raw[k * step : (k + 1) * step]
-            if len(seg) < step or seg[1] != expected:
-                out.result, out.failed = COMM_RX_CORRUPT, expected
-                return out
-            out.errors[expected] = seg[0]
-            out.data[expected] = seg[2 : 2 + length]
+        return _split_fast(bytes(raw), ids, length)
+
+    # ---------------------------------------------------------- the compiled path
+
+    def _request(self, start: int, length: int, ids: Sequence[int], fast: bool) -> bytes | None:
+        key = (start, length, fast, tuple(ids))
+        request = self._requests.get(key, b"")
+        if request == b"":
+            if len(self._requests) > 64:  # a cycle repeats a few; a scan must not pile up
+                self._requests.clear()
+            request = self._requests[key] = wire.sync_read_request(start, length, ids, fast=fast)
+        return request
+
+    def _native_read(
+        self, ids: Sequence[int], start: int, length: int, fast: bool, then: Sequence[bytes]
+    ) -> SyncReadResult | None:
+        """:meth:`sync_read` on the compiled path; ``None`` where it does not apply (a
+        port of another kind, a request the SDK would build otherwise)."""
+        port = self.port
+        fd = getattr(port, "_fd", None) if isinstance(port, WaitingPortHandler) else None
+        if fd is None and (isinstance(port, WaitingPortHandler) or not hasattr(port, "peek")):
+            return None
+        request = self._request(start, length, ids, fast)
+        if request is None or len(ids) > 253:
+            return None
+        if port.is_using:  # as the SDK's txPacket
+            return SyncReadResult(int(dxl.COMM_PORT_BUSY), failed=ids[0])
+        try:
+            if fd is not None:
+                return self._native_fd(port, fd, request, ids, length, fast, then)
+            return self._native_buffered(port, request, ids, length, fast, then)
+        except OSError as exc:  # as _gone()
+            raise self._lost(exc) from exc
+
+    def _native_fd(
+        self,
+        port: Any,
+        fd: int,
+        request: bytes,
+        ids: Sequence[int],
+        length: int,
+        fast: bool,
+        then: Sequence[bytes],
+    ) -> SyncReadResult:
+        """A real port: the whole transaction in ``_wire.transact``, the GIL released."""
+        port.clearPort()  # as the SDK's txPacket
+        port.setPacketTimeout((11 + length) * len(ids))  # as its syncReadTx: the same deadline
+        assert wire.NATIVE is not None
+        result, failed, data, errors, taken, received, events, sent = wire.NATIVE.transact(
+            fd,
+            request,
+            bytes(ids),
+            length,
+            fast,
+            port.packet_timeout,
+            tuple(then),
+            10.0 / port.getBaudRate(),  # 8N1: 10 bits a byte
+        )
+        if taken < len(received):  # left unread, as the SDK would have left them
+            port._rx += received[taken:]
+        direct = getattr(port, "tap_direct", None)
+        if direct is not None:
+            report, now = direct
+            offset = now() - monotonic()  # the events are stamped on the monotonic clock
+            left = taken
+            for kind, t, chunk in events:
+                if kind == "rx":
+                    if left <= 0:
+                        continue
+                    chunk = chunk[:left]
+                    left -= len(chunk)
+                report(kind, t + offset, chunk)
+        return self._native_result(result, failed, data, errors, ids, length, fast, sent)
+
+    def _native_buffered(
+        self,
+        port: Any,
+        request: bytes,
+        ids: Sequence[int],
+        length: int,
+        fast: bool,
+        then: Sequence[bytes],
+    ) -> SyncReadResult:
+        """A port that hands the reply over whole: the SDK's calls on it, in its order —
+        write, arm the timeout, read what it would read, ask for the timeout where it
+        would — and ``_wire.parse`` for the rest."""
+        port.clearPort()
+        if port.writePort(request) != len(request):
+            port.is_using = False
+            return SyncReadResult(int(dxl.COMM_TX_FAIL), failed=ids[0])
+        port.setPacketTimeout((11 + length) * len(ids))
+        received: bytes = port.peek()
+        sent: list[int] = []
+        if then and not fast and _tail_of(received, ids[-1], length):
+            sent = [self._write(p) for p in then]
+        assert wire.NATIVE is not None
+        parse, id_bytes = wire.NATIVE.parse, bytes(ids)
+        read, timed_out = 0, False
+        while True:
+            done, taken, result, failed, data, errors, _ = parse(
+                received, id_bytes, length, fast, timed_out
+            )
+            # Read as the SDK reads — at least once, nothing there or not: a port that is
+            # gone says so when it is read.
+            if taken > read or not done:
+                port.readPort(taken - read)
+                read = taken
+            if done:
+                break
+            if port.isPacketTimeout():
+                timed_out = True
+            else:
+                received = received[:read] + port.peek()
+        return self._native_result(result, failed, data, errors, ids, length, fast, sent)
+
+    @staticmethod
+    def _native_result(
+        result: int,
+        failed: int | None,
+        data: Any,
+        errors: dict[int, int],
+        ids: Sequence[int],
+        length: int,
+        fast: bool,
+        sent: list[int],
+    ) -> SyncReadResult:
+        if fast:
+            if result != COMM_SUCCESS:
+                out = SyncReadResult(result, failed=ids[0])
+            else:
+                out = _split_fast(data, ids, length)
+        else:
+            out = SyncReadResult(result, data, errors, None if failed is None else ids[failed])
+        out.sent = sent
         return out
+
+
+def _tail_of(buf: bytes, last: int, length: int) -> bool:
+    """:meth:`DxlBus._tail_complete` of the bytes ``buf``."""
+    n = 11 + length
+    return (
+        len(buf) >= n
+        and buf[-n : -n + 5] == bytes((0xFF, 0xFF, 0xFD, 0x00, last))
+        and buf[-n + 5] | (buf[-n + 6] << 8) == n - 7
+    )
+
+
+def _split_fast(raw: bytes, ids: Sequence[int], length: int) -> SyncReadResult:
+    """A Fast Sync Read's data, ``[ERR, ID, data…, CRC₂]`` per servo, cut per servo."""
+    out = SyncReadResult(COMM_SUCCESS)
+    step = length + 4
+    for k, expected in enumerate(ids):
+        seg = raw[k * step : (k + 1) * step]
+        if len(seg) < step or seg[1] != expected:
+            out.result, out.failed = COMM_RX_CORRUPT, expected
+            return out
+        out.errors[expected] = seg[0]
+        out.data[expected] = seg[2 : 2 + length]
+    return out
 
 
 # --------------------------------------------------------------------------- owners
@@ -420,8 +584,8 @@ class InlinePortOwner:
     cost); :class:`~whexar.bus.emulator.port.EmulatedPort` does.
     """
 
-    def __init__(self, port: Any, clock: Clock) -> None:
-        self.bus = DxlBus(port)
+    def __init__(self, port: Any, clock: Clock, *, native: bool = True) -> None:
+        self.bus = DxlBus(port, native=native)
         self._port = port
         self._clock = clock
         # The bus is busy until a job's time has passed. asyncio's lock: the
@@ -455,8 +619,8 @@ class ThreadPortOwner:
     cannot keep the process alive.
     """
 
-    def __init__(self, port: Any, *, name: str = "servo-port") -> None:
-        self.bus = DxlBus(port)
+    def __init__(self, port: Any, *, name: str = "servo-port", native: bool = True) -> None:
+        self.bus = DxlBus(port, native=native)
         self._port = port
         self._jobs: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._thread = threading.Thread(target=self._serve, name=name, daemon=True)
@@ -663,10 +827,17 @@ def tap_port(port: Any, tap: LinkTap, now: Callable[[], float]) -> None:
             report()
         return close()
 
+    def direct(kind: str, t: float, data: bytes) -> None:
+        # The compiled path reads and writes the port itself and reports here, in order.
+        if got:
+            report()
+        tap(kind, t, data)
+
     port.writePort = write_port
     port.readPort = read_port
     port.isPacketTimeout = is_packet_timeout
     port.closePort = close_port
+    port.tap_direct = (direct, now)
 
 
 def open_port(name: str, baudrate: int) -> Any:

@@ -84,6 +84,7 @@ from whexar.actors.messages import (
     WatchdogStopped,
 )
 from whexar.bus import control_table as ct
+from whexar.bus import wire
 from whexar.bus.emulator.faults import FaultPlanFile
 from whexar.bus.plan import ReadPlan, resolve_plan
 from whexar.bus.protocol import ALERT
@@ -126,6 +127,9 @@ class BusScheduler(Actor):
         """For ``port = "emulator"``: a fault plan (TOML) applied to the emulated servos."""
         stats_period_s: float = Field(1.0, gt=0)
         """How often :class:`BusStats` is published."""
+        native: bool = True
+        """The cycle's transactions on the compiled path (:mod:`whexar.bus.wire`) where it
+        is built; ``false``: dynamixel-sdk's for everything (the same results)."""
 
     params: Params
     goals = Input(JointGoals, optional=True)
@@ -174,7 +178,7 @@ class BusScheduler(Actor):
             tap = self.tap()
             if tap is not None:
                 tap_port(played, tap, lambda: self.clock.now() + played.elapsed_s)
-            return InlinePortOwner(played, self.clock)
+            return InlinePortOwner(played, self.clock, native=self.params.native)
         if name == EMULATOR or name.startswith(EMULATOR + ":"):
             from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
             from whexar.bus.emulator.port import EmulatedPort
@@ -197,7 +201,7 @@ class BusScheduler(Actor):
             tap = self.tap()
             if tap is not None:  # bus time: the loop's, plus the wire time of this job so far
                 tap_port(port, tap, lambda: self.clock.now() + port.elapsed_s)
-            return InlinePortOwner(port, self.clock)
+            return InlinePortOwner(port, self.clock, native=self.params.native)
         self.clock.uses_real_io(f"servo port {name}")  # refused on virtual time, by name
         latency = latency_timer_ms(name)
         if latency is not None and latency > 1:
@@ -214,7 +218,7 @@ class BusScheduler(Actor):
         tap = self.tap()
         if tap is not None:
             tap_port(real, tap, self.clock.now)
-        return ThreadPortOwner(real)
+        return ThreadPortOwner(real, native=self.params.native)
 
     def _effects(self, effects: Iterable[Effect]) -> None:
         """Publish what a core decided, in its order: events, and safe-stop requests."""
@@ -428,6 +432,8 @@ class BusScheduler(Actor):
     async def run(self) -> None:
         self._setup()
         self.owner = self._open_owner()
+        if self.params.native and wire.NATIVE is None:  # said once, at start; then the SDK's
+            self.emit(BusWarning(t=self.now(), source=self.name, message=wire.why_not()))
         try:
             await self._start_up(self.owner)
             self.ready()
