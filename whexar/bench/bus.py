@@ -14,17 +14,23 @@ What each figure runs (42 servos, 1 Mbps, Return Delay Time 20 µs):
   emulator: process CPU time per cycle minus the time spent inside the
   emulator, so it is the bus path (scheduler, SDK codec, conversions) plus
   the runtime's message passing and the goal source.
-* **realtime_hz** — ``full_feedback`` and ``positioning`` on real time
-  through the real SDK over a pseudo-terminal, against ``whexar emulate``
-  in another process waiting out each transaction's wire time: the path a
-  U2D2 takes, with the emulator standing in for the servos.
-* **realtime_cpu_ms_per_cycle** — in those runs, the runtime process's CPU
-  time (all threads) per cycle: what is left of a Raspberry Pi's cores. When
-  no cycle came through after the warm-up (``realtime_hz`` 0), it is infinite:
+* **realtime** — ``full_feedback`` and ``positioning`` on real time over a
+  pseudo-terminal, against ``whexar emulate`` in another process waiting out
+  each transaction's wire time: the path a U2D2 takes, with the emulator
+  standing in for the servos. Each plan runs five ways, one after the other:
+
+  - ``native`` — the runtime, the cycle's transactions on the compiled path
+    (:mod:`whexar.bus.wire`);
+  - ``sdk`` — the runtime, dynamixel-sdk's path for everything;
+  - ``loop`` / ``loop_sdk`` — whexar's bus path alone, compiled or the SDK's: a
+    plain loop of the plan's reads with the goals riding on them, no runtime;
+  - ``baseline`` — the same cycle as a plain dynamixel-sdk loop
+    (``GroupSyncRead`` then ``GroupSyncWrite``, as users write it): the
+    runtime must not be slower than that.
+* **realtime_cpu_ms_per_cycle** — in those runs, the process's CPU time (all
+  threads) per cycle: what is left of a Raspberry Pi's cores. When no cycle
+  came through after the warm-up (``realtime_hz`` 0), it is infinite:
   ``null`` in ``--json``.
-* **baseline_hz** — the same cycle as a plain dynamixel-sdk loop on the same
-  kind of pty (``GroupSyncRead`` then ``GroupSyncWrite``, as users write it):
-  the runtime must not be slower than that.
 """
 
 from __future__ import annotations
@@ -39,19 +45,19 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, TypeVar
 
 from whexar.actors.bus import BusScheduler
 from whexar.actors.graph import GRAPH_DIR, robot_graph
 from whexar.actors.messages import ServoStates
 from whexar.bench import Figure, Progress, Report
-from whexar.bus.control_table import block
+from whexar.bus.control_table import Block, block
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.bus.emulator.timing import TimingModel
 from whexar.bus.plan import PRESETS, ReadPlan
 from whexar.bus.protocol import sync_read_bytes, sync_write_bytes
-from whexar.bus.sdk import DxlBus, PortOwner
+from whexar.bus.sdk import DxlBus, PortOwner, open_port
 from whexar.config import RobotConfig
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.clock import run as run_loop
@@ -62,10 +68,12 @@ from whexar.runtime.wiring import build_graph
 
 PLANS = ("thesis", "full_feedback", "fast_full_feedback", "positioning", "default")
 SHARE_OF_LIMIT = 0.95
-"""Target: virtual and real-time cycle rates reach 95 % of the bus limit."""
+"""Target: the virtual-time cycle rate reaches 95 % of the bus limit."""
+REALTIME_SHARE = 0.99
+"""Target: on real time over a pty, the compiled path reaches 99 % of the bus limit."""
 REALTIME_PLANS = ("full_feedback", "positioning")
-REALTIME_CPU_TARGET_MS = 2.0
-"""Target: the runtime process's CPU per real-time cycle (all threads)."""
+REALTIME_CPU_TARGET_MS = {"full_feedback": 0.6, "positioning": 0.5}
+"""Target: the process's CPU per real-time cycle (all threads), on the compiled path."""
 FULL_FEEDBACK_HZ = 64.0
 """Target: the thesis's position + current reading ran at 47–48 Hz (6.1.1, 6.1.4)."""
 POSITIONING_HZ = 110.0
@@ -80,19 +88,27 @@ class PlanFigures:
     hz: float
     limit_hz: float
     bytes_per_cycle: float
-    realtime_hz: float | None = None
-    realtime_cpu_ms: float | None = None
-    baseline_hz: float | None = None
+    realtime: dict[str, Realtime] = field(default_factory=dict)
+    """Real-time runs by :data:`REALTIME_PATHS`."""
 
 
-def plan_limit(plan: ReadPlan, cfg: RobotConfig, timing: TimingModel) -> tuple[float, float]:
-    """(cycles/s, bytes per cycle) of ``plan`` on a bus that does nothing else."""
+def plan_limit(
+    plan: ReadPlan, cfg: RobotConfig, timing: TimingModel, *, write_bytes: float | None = None
+) -> tuple[float, float]:
+    """(cycles/s, bytes per cycle) of ``plan`` on a bus that does nothing else.
+
+    Each cycle writes every goal (36 positions, 6 wheel speeds), unless ``write_bytes``
+    says how many bytes of Sync Write a cycle sends on average: the scheduler writes only
+    the goals that changed (a Sync Write is pure wire time).
+    """
     rdt = cfg.bus.return_delay_time_us * 1e-6
     fast = plan.fast_sync_read == "on"
     n_servos = len(LEG_NAMES) * len(JOINT_NAMES)
     wheels = len(LEG_NAMES)
-    base = timing.sync_write_s(n_servos - wheels, 4) + timing.sync_write_s(wheels, 4)
-    nbytes = float(sync_write_bytes(n_servos - wheels, 4) + sync_write_bytes(wheels, 4))
+    if write_bytes is None:
+        write_bytes = sync_write_bytes(n_servos - wheels, 4) + sync_write_bytes(wheels, 4)
+    base = write_bytes * timing.bits_per_byte / timing.baudrate
+    nbytes = float(write_bytes)
     busy_per_s = 0.0
     slow_bytes_per_s = 0.0
     for read in plan.reads:
@@ -110,13 +126,14 @@ def plan_limit(plan: ReadPlan, cfg: RobotConfig, timing: TimingModel) -> tuple[f
     return hz, nbytes + slow_bytes_per_s / hz
 
 
-def _graph(port: str, plan: str) -> dict[str, Any]:
+def _graph(port: str, plan: str, *, native: bool = True) -> dict[str, Any]:
     """``config/graphs/bus.toml`` (the scheduler and a goal source that sways every
-    joint) on ``port`` with read plan ``plan``, without its logging sinks."""
+    joint) on ``port`` with read plan ``plan``, without its logging sinks; ``native``: the
+    scheduler's parameter of that name."""
     return robot_graph(
         path=GRAPH_DIR / "bus.toml",
         bus=port,
-        params={"bus": {"plan": plan}},
+        params={"bus": {"plan": plan, "native": native}},
         leave_out=("health-log", "stats-log"),
     )
 
@@ -269,8 +286,11 @@ class Realtime:
     cpu_ms: float
 
 
-def realtime_run(plan: str, seconds: float = 3.0, warm_s: float = 0.5) -> Realtime:
-    """``plan`` on real time through the SDK over a pty to ``whexar emulate``.
+def realtime_run(
+    plan: str, seconds: float = 3.0, warm_s: float = 0.5, *, native: bool = True
+) -> Realtime:
+    """``plan`` on real time through the SDK over a pty to ``whexar emulate``; ``native``:
+    the cycle's transactions on the compiled path (:mod:`whexar.bus.wire`), else the SDK's.
 
     CPU is the runtime process's CPU time, all threads, per cycle, over the cycles after
     ``warm_s``; the messages are counted by an observer, not logged (a log's garbage
@@ -283,21 +303,89 @@ def realtime_run(plan: str, seconds: float = 3.0, warm_s: float = 0.5) -> Realti
             marks.append((time.perf_counter(), time.process_time()))
 
     async def main() -> None:
-        runtime = Runtime(build_graph(_graph(path, plan)), observer=observe)
+        graph = _graph(path, plan, native=native)
+        runtime = Runtime(build_graph(graph), observer=observe)
         await runtime.run(duration=seconds + warm_s)
 
     with emulator_process() as path:
         run_loop(main)
     kept = [m for m in marks if m[0] >= marks[0][0] + warm_s] if marks else []
-    if len(kept) < 2:
+    return _per_cycle(kept)
+
+
+def _per_cycle(marks: list[tuple[float, float]]) -> Realtime:
+    """Cycles per second and CPU ms per cycle from (wall, CPU) marks, one per cycle."""
+    if len(marks) < 2:
         return Realtime(0.0, math.inf)
-    (t0, c0), (t1, c1) = kept[0], kept[-1]
-    cycles = len(kept) - 1
+    (t0, c0), (t1, c1) = marks[0], marks[-1]
+    cycles = len(marks) - 1
     return Realtime(cycles / (t1 - t0), (c1 - c0) / cycles * 1e3)
 
 
-def baseline_rate(plan: str, seconds: float = 3.0) -> float:
-    """Cycles/s of a plain dynamixel-sdk loop doing ``plan``'s cycle on the same kind of pty.
+@dataclass(frozen=True)
+class _Cycle:
+    """A plan's every-cycle reads (register span, servo IDs) and the goals it writes."""
+
+    reads: list[tuple[Block, list[int]]]
+    positions: list[int]
+    wheels: list[int]
+
+
+def _cycle(plan: str) -> _Cycle:
+    cfg = RobotConfig()
+    wheel = JOINT_NAMES.index("wheel")
+    reads = []
+    for read in PRESETS[plan].reads:
+        if read.rate_hz is not None:
+            continue
+        ids = [
+            sid
+            for leg in cfg.legs
+            if leg.name in read.legs
+            for j, sid in enumerate(leg.servo_ids)
+            if JOINT_NAMES[j] in read.joints
+        ]
+        reads.append((block(read.registers), ids))
+    return _Cycle(
+        reads,
+        [sid for leg in cfg.legs for j, sid in enumerate(leg.servo_ids) if j != wheel],
+        [leg.servo_ids[wheel] for leg in cfg.legs],
+    )
+
+
+def bus_loop(plan: str, seconds: float = 3.0, *, native: bool = True) -> Realtime:
+    """The bus path alone: ``plan``'s cycle as a plain loop through whexar's
+    :class:`~whexar.bus.sdk.DxlBus` over a pty to ``whexar emulate`` — the reads, the 36
+    positions and 6 wheel speeds riding on the last one — with no runtime around it: what
+    the compiled path (``native``) costs against the SDK's own, like for like."""
+    cycle = _cycle(plan)
+    marks: list[tuple[float, float]] = []
+    with emulator_process() as path:
+        port = open_port(path, RobotConfig().bus.baudrate)
+        try:
+            bus = DxlBus(port, native=native)
+            start = time.perf_counter()
+            n = 0
+            while (now := time.perf_counter()) - start < seconds + 0.5:
+                if now - start >= 0.5:  # the warm-up, as the runtime's
+                    marks.append((now, time.process_time()))
+                goal = (2048 + n % 64).to_bytes(4, "little")
+                goals = [
+                    bus.prepare_sync_write(116, 4, dict.fromkeys(cycle.positions, goal)),
+                    bus.prepare_sync_write(104, 4, dict.fromkeys(cycle.wheels, b"\x28\0\0\0")),
+                ]
+                for k, (span, ids) in enumerate(cycle.reads):
+                    last = k == len(cycle.reads) - 1
+                    bus.sync_read(ids, span.start, span.length, then=goals if last else ())
+                n += 1
+        finally:
+            port.closePort()
+    return _per_cycle(marks)
+
+
+def baseline_rate(plan: str, seconds: float = 3.0) -> Realtime:
+    """Cycles/s and CPU ms per cycle of a plain dynamixel-sdk loop doing ``plan``'s cycle on
+    the same kind of pty.
 
     As users write it: the SDK's own ``PortHandler`` and, per cycle, a
     ``GroupSyncRead.txRxPacket()`` of each every-cycle read of the plan, then a
@@ -306,44 +394,35 @@ def baseline_rate(plan: str, seconds: float = 3.0) -> float:
     import dynamixel_sdk as dxl
 
     cfg = RobotConfig()
-    spec = PRESETS[plan]
-    wheel = JOINT_NAMES.index("wheel")
-    positions = [sid for leg in cfg.legs for j, sid in enumerate(leg.servo_ids) if j != wheel]
-    wheels = [leg.servo_ids[wheel] for leg in cfg.legs]
+    cycle = _cycle(plan)
     with emulator_process() as path:
         port = dxl.PortHandler(path)
         port.openPort()
         port.setBaudRate(cfg.bus.baudrate)
         ph = dxl.PacketHandler(2.0)
         reads = []
-        for read in spec.reads:
-            if read.rate_hz is not None:
-                continue
-            span = block(read.registers)
+        for span, ids in cycle.reads:
             group = dxl.GroupSyncRead(port, ph, span.start, span.length)
-            for leg_spec in cfg.legs:
-                if leg_spec.name not in read.legs:
-                    continue
-                for j, sid in enumerate(leg_spec.servo_ids):
-                    if JOINT_NAMES[j] in read.joints:
-                        group.addParam(sid)
+            for sid in ids:
+                group.addParam(sid)
             reads.append(group)
         cycles = 0
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         try:
             while time.perf_counter() - start < seconds:
                 for group in reads:
                     group.txRxPacket()
                 goals = dxl.GroupSyncWrite(port, ph, 116, 4)
-                for sid in positions:
+                for sid in cycle.positions:
                     goals.addParam(sid, list((2048 + cycles % 64).to_bytes(4, "little")))
                 goals.txPacket()
                 speeds = dxl.GroupSyncWrite(port, ph, 104, 4)
-                for sid in wheels:
+                for sid in cycle.wheels:
                     speeds.addParam(sid, list((40).to_bytes(4, "little")))
                 speeds.txPacket()
                 cycles += 1
-            return cycles / (time.perf_counter() - start)
+            elapsed = time.perf_counter() - start
+            return Realtime(cycles / elapsed, (time.process_time() - cpu) / max(1, cycles) * 1e3)
         finally:
             port.closePort()
 
@@ -358,24 +437,18 @@ def run(progress: Progress = None, *, seconds: float = 3.0) -> Report:
         say(f"plan {name}: {seconds:g} s of virtual time against the emulator…")
         limit, nbytes = plan_limit(PRESETS[name], cfg, timing)
         hz = virtual_rate(name, cfg, seconds)
-        rt: Realtime | None = None
-        baseline = None
+        realtime: dict[str, Realtime] = {}
         if name in REALTIME_PLANS and os.name == "posix":
-            say(f"plan {name}: {seconds:g} s of real time over a pty to `whexar emulate`…")
-            rt = realtime_run(name, seconds)
-            say(f"plan {name}: the same cycle as a plain dynamixel-sdk loop, {seconds:g} s…")
-            baseline = baseline_rate(name, seconds)
-        plans.append(
-            PlanFigures(
-                name,
-                hz,
-                limit,
-                nbytes,
-                None if rt is None else rt.hz,
-                None if rt is None else rt.cpu_ms,
-                baseline,
-            )
-        )
+            for path, what, measure in (
+                ("native", "the runtime, compiled path", realtime_run),
+                ("sdk", "the runtime, dynamixel-sdk's path", _sdk_realtime_run),
+                ("loop", "the bus path alone, compiled", bus_loop),
+                ("loop_sdk", "the bus path alone, dynamixel-sdk's", _sdk_bus_loop),
+                ("baseline", "a plain dynamixel-sdk loop", baseline_rate),
+            ):
+                say(f"plan {name}: {what}, {seconds:g} s of real time over a pty…")
+                realtime[path] = measure(name, seconds)
+        plans.append(PlanFigures(name, hz, limit, nbytes, realtime))
     cpu: dict[str, float] = {}
     for name in ("full_feedback", "positioning"):
         say(f"plan {name}: CPU per cycle on real time, in-process emulator (3 runs)…")
@@ -392,38 +465,7 @@ def run(progress: Progress = None, *, seconds: float = 3.0) -> Report:
                 at_least=True,
             )
         )
-        if p.realtime_hz is not None:
-            items.append(
-                Figure(
-                    f"{p.name}_realtime_hz",
-                    f"{p.name}, real time over a pty",
-                    p.realtime_hz,
-                    "Hz",
-                    SHARE_OF_LIMIT * p.limit_hz,
-                    at_least=True,
-                )
-            )
-        if p.realtime_hz is not None and p.baseline_hz is not None:
-            items.append(
-                Figure(
-                    f"{p.name}_realtime_vs_baseline_hz",
-                    f"{p.name}, real time, vs a plain SDK loop",
-                    p.realtime_hz,
-                    "Hz",
-                    p.baseline_hz,
-                    at_least=True,
-                )
-            )
-        if p.realtime_cpu_ms is not None:
-            items.append(
-                Figure(
-                    f"{p.name}_realtime_cpu_ms",
-                    f"{p.name}, real time: process CPU per cycle",
-                    p.realtime_cpu_ms,
-                    "ms",
-                    REALTIME_CPU_TARGET_MS,
-                )
-            )
+        items.extend(_realtime_figures(p))
     by_name = {p.name: p for p in plans}
     items.append(
         Figure(
@@ -461,14 +503,15 @@ def run(progress: Progress = None, *, seconds: float = 3.0) -> Report:
                 "hz": round(p.hz, 2),
                 "limit_hz": round(p.limit_hz, 2),
                 "bytes_per_cycle": round(p.bytes_per_cycle, 1),
-                **({"realtime_hz": round(p.realtime_hz, 2)} if p.realtime_hz is not None else {}),
-                **({"baseline_hz": round(p.baseline_hz, 2)} if p.baseline_hz is not None else {}),
+                **{f"{path}_realtime_hz": round(r.hz, 2) for path, r in p.realtime.items()},
             }
             for p in plans
         ],
         "cpu_ms_per_cycle": {k: round(v, 3) for k, v in cpu.items()},
         "realtime_cpu_ms_per_cycle": {
-            p.name: round(p.realtime_cpu_ms, 3) for p in plans if p.realtime_cpu_ms is not None
+            path: {p.name: _ms(p.realtime[path].cpu_ms) for p in plans if path in p.realtime}
+            for path in REALTIME_PATHS
+            if any(path in p.realtime for p in plans)
         },
     }
     return Report(
@@ -477,6 +520,67 @@ def run(progress: Progress = None, *, seconds: float = 3.0) -> Report:
         notes=[
             "hz: virtual time, whole runtime, real SDK, in-process emulator; "
             "limit_hz: the emulator's timing model for the same cycle",
+            "real time over a pty to `whexar emulate`: native / sdk, the runtime with the "
+            "cycle's transactions compiled or dynamixel-sdk's; loop / loop_sdk, whexar's bus "
+            "path alone (no runtime); baseline, a plain dynamixel-sdk loop as users write it",
         ],
         data=data,
     )
+
+
+REALTIME_PATHS = ("native", "sdk", "loop", "loop_sdk", "baseline")
+"""The real-time runs of a plan, by what they measure (:func:`run`)."""
+
+
+def _ms(value: float) -> float | None:
+    """CPU ms for ``--json``: ``None`` when no cycle was measured (infinite)."""
+    return round(value, 3) if math.isfinite(value) else None
+
+
+def _sdk_realtime_run(plan: str, seconds: float) -> Realtime:
+    return realtime_run(plan, seconds, native=False)
+
+
+def _sdk_bus_loop(plan: str, seconds: float) -> Realtime:
+    return bus_loop(plan, seconds, native=False)
+
+
+def _realtime_figures(p: PlanFigures) -> list[Figure]:
+    """The real-time figures of one plan against their targets (issue targets in the
+    module's constants)."""
+    out: list[Figure] = []
+    cpu_target = REALTIME_CPU_TARGET_MS.get(p.name, math.inf)
+    labels = {
+        "native": ("realtime", "real time over a pty", REALTIME_SHARE, cpu_target),
+        "sdk": ("sdk_realtime", "real time, dynamixel-sdk's path", SHARE_OF_LIMIT, 2.0),
+        "loop": ("loop", "the bus path alone", REALTIME_SHARE, cpu_target),
+    }
+    for path, (key, label, share, cpu_ms) in labels.items():
+        r = p.realtime.get(path)
+        if r is None:
+            continue
+        out.append(
+            Figure(f"{p.name}_{key}_hz", f"{p.name}, {label}", r.hz, "Hz", share * p.limit_hz, True)
+        )
+        out.append(
+            Figure(
+                f"{p.name}_{key}_cpu_ms",
+                f"{p.name}, {label}: process CPU per cycle",
+                r.cpu_ms,
+                "ms",
+                cpu_ms,
+            )
+        )
+    native, baseline = p.realtime.get("native"), p.realtime.get("baseline")
+    if native is not None and baseline is not None:
+        out.append(
+            Figure(
+                f"{p.name}_realtime_vs_baseline_hz",
+                f"{p.name}, real time, vs a plain SDK loop",
+                native.hz,
+                "Hz",
+                baseline.hz,
+                at_least=True,
+            )
+        )
+    return out

@@ -15,7 +15,9 @@ the stand-up, in the runtime's process (all threads), per completed bus cycle:
 * **cpu_ms_per_cycle** — process CPU time per bus cycle (a ``ServoStates`` on
   ``servo-state``), against the same 25 % of the cycle's period.
 * **cycle_hz** — bus cycles per second, against the bus limit's 98 % for the
-  graph's read plan: the controller must not slow the bus.
+  graph's read plan with the goal writes the walk made (the scheduler writes only
+  the goals that changed; ``BusStats`` counts the bytes): the controller must not
+  slow the bus.
 
 The emulators' own process is not counted: on the robot the servos and the board do
 that work.
@@ -24,12 +26,15 @@ that work.
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
 from whexar.actors.graph import robot_graph
+from whexar.actors.messages import BusStats
 from whexar.bench import Figure, Progress, Report
 from whexar.bench.bus import emulators_process, plan_limit
 from whexar.bus.emulator.timing import TimingModel
@@ -48,13 +53,28 @@ SHARE_OF_LIMIT: Final = 0.98
 """The bus cycle rate must stay within 2 % of its limit (as ``whexar bench bus``)."""
 
 
-def measure(seconds: float = 10.0) -> tuple[float, float, float, int]:
-    """(core_pct, cpu_ms_per_cycle, cycle_hz, cycles) of ``seconds`` of walking."""
+@dataclass(frozen=True)
+class Measured:
+    """What ``seconds`` of walking took (:func:`measure`)."""
+
+    core_pct: float
+    cpu_ms_per_cycle: float
+    cycle_hz: float
+    cycles: int
+    bytes_per_cycle: float
+    """Bus bytes per cycle, reads and writes, as the scheduler counted them (``BusStats``)."""
+
+
+def measure(seconds: float = 10.0) -> Measured:
+    """The controller's CPU and bus over ``seconds`` of walking after the stand-up."""
     marks: list[tuple[float, float]] = []
+    stats: list[tuple[float, BusStats]] = []
 
     def observe(channel: str, msg: object) -> None:
         if channel == "servo-state":
             marks.append((time.perf_counter(), time.process_time()))
+        elif isinstance(msg, BusStats):
+            stats.append((time.perf_counter(), msg))
 
     with tempfile.TemporaryDirectory() as folder, emulators_process() as (pty, board):
         script = Path(folder) / "walk.jsonl"
@@ -68,11 +88,33 @@ def measure(seconds: float = 10.0) -> tuple[float, float, float, int]:
 
         run_loop(main)
     kept = [m for m in marks if m[0] >= marks[0][0] + STAND_S] if marks else []
+    walked = [m for t, m in stats if kept and t >= kept[0][0]]
     if len(kept) < 2:
-        return (float("inf"), float("inf"), 0.0, 0)
+        return Measured(float("inf"), float("inf"), 0.0, 0, math.nan)
     (t0, c0), (t1, c1) = kept[0], kept[-1]
     cycles = len(kept) - 1
-    return ((c1 - c0) / (t1 - t0) * 100, (c1 - c0) / cycles * 1e3, cycles / (t1 - t0), cycles)
+    # The counters run from the start: the walk's bytes are the difference of two reports.
+    nbytes = math.nan
+    if len(walked) >= 2 and walked[-1].cycles > walked[0].cycles:
+        a, b = walked[0], walked[-1]
+        nbytes = (b.bytes_per_cycle * b.cycles - a.bytes_per_cycle * a.cycles) / (
+            b.cycles - a.cycles
+        )
+    return Measured(
+        (c1 - c0) / (t1 - t0) * 100, (c1 - c0) / cycles * 1e3, cycles / (t1 - t0), cycles, nbytes
+    )
+
+
+def walking_limit(plan: str, cfg: RobotConfig, bytes_per_cycle: float) -> float:
+    """The bus limit (cycles/s) of ``plan`` with the goal writes the walk made: its bytes
+    per cycle less the plan's reads are Sync Write, pure wire time. The plan's own limit
+    where the bytes are unknown (every goal written every cycle)."""
+    timing = TimingModel(baudrate=cfg.bus.baudrate)
+    if not math.isfinite(bytes_per_cycle):
+        return plan_limit(PRESETS[plan], cfg, timing)[0]
+    _, reads = plan_limit(PRESETS[plan], cfg, timing, write_bytes=0)
+    writes = max(0.0, bytes_per_cycle - reads)
+    return plan_limit(PRESETS[plan], cfg, timing, write_bytes=writes)[0]
 
 
 def run(progress: Progress = None, *, seconds: float = 10.0) -> Report:
@@ -83,11 +125,12 @@ def run(progress: Progress = None, *, seconds: float = 10.0) -> Report:
         f"emulate --board`: "
         f"{STAND_S:g} s to stand, {seconds:g} s of tripod walking…"
     )
-    core, per_cycle, hz, cycles = measure(seconds)
+    m = measure(seconds)
+    core, per_cycle, hz, cycles = m.core_pct, m.cpu_ms_per_cycle, m.cycle_hz, m.cycles
     cfg = RobotConfig()
     (bus,) = (a for a in robot_graph()["actors"] if a["name"] == "bus")
     plan = str(bus["params"].get("plan", "default"))
-    limit_hz, _ = plan_limit(PRESETS[plan], cfg, TimingModel(baudrate=cfg.bus.baudrate))
+    limit_hz = walking_limit(plan, cfg, m.bytes_per_cycle)
     period_ms = 1e3 / hz if hz > 0 else float("inf")
     return Report(
         "robot",
@@ -102,7 +145,7 @@ def run(progress: Progress = None, *, seconds: float = 10.0) -> Report:
             ),
             Figure(
                 "cycle_hz",
-                f"bus cycles ({plan} plan, limit {limit_hz:.1f} Hz)",
+                f"bus cycles ({plan} plan, limit {limit_hz:.1f} Hz with the walk's goals)",
                 hz,
                 "Hz",
                 SHARE_OF_LIMIT * limit_hz,
@@ -119,4 +162,4 @@ def run(progress: Progress = None, *, seconds: float = 10.0) -> Report:
     )
 
 
-__all__ = ["CORE_TARGET_PCT", "measure", "run"]
+__all__ = ["CORE_TARGET_PCT", "Measured", "measure", "run", "walking_limit"]
