@@ -492,16 +492,17 @@ static int tail_complete(const uint8_t *buf, Py_ssize_t n_buf, int last, Py_ssiz
 }
 
 PyDoc_STRVAR(transact_doc,
-             "transact(fd, request, ids, length, fast, timeout_ms, then, byte_s) -> (result, "
-             "failed, "
-             "data, errors, taken, received, events, sent)\n\n"
+             "transact(fd, request, ids, length, fast, timeout_ms, then, byte_s, busy_until) "
+             "-> (result, failed, data, errors, taken, received, events, sent, free_at)\n\n"
              "One Sync Read on a serial port's file descriptor, the GIL released throughout: "
              "write request, wait in poll() for the statuses until timeout_ms after it, read "
-             "them as dynamixel-sdk does (sleeping while they cannot all be in yet, byte_s "
-             "seconds a byte on the wire), and write the packets of then as soon as the last "
+             "them as dynamixel-sdk does (sleeping while they cannot all be in yet: byte_s "
+             "seconds a byte on the wire, the bus busy until busy_until with what the last "
+             "call wrote), and write the packets of then as soon as the last "
              "status is whole, or after the read. received is every byte "
              "read, taken how many of them the SDK would have read; events are (kind, "
-             "CLOCK_MONOTONIC s, bytes) in order, kind 'tx', 'rx' or 'timeout'. "
+             "CLOCK_MONOTONIC s, bytes) in order, kind 'tx', 'rx' or 'timeout'; free_at, "
+             "when the bus is free of what this call wrote (its next busy_until). "
              "An error of the port raises OSError.");
 
 static PyObject *py_transact(PyObject *self, PyObject *args)
@@ -509,10 +510,10 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
     int fd, fast;
     Py_buffer request, ids;
     Py_ssize_t length;
-    double timeout_ms, byte_s;
+    double timeout_ms, byte_s, busy_until;
     PyObject *then;
-    if (!PyArg_ParseTuple(args, "iy*y*npdO!d", &fd, &request, &ids, &length, &fast,
-                          &timeout_ms, &PyTuple_Type, &then, &byte_s))
+    if (!PyArg_ParseTuple(args, "iy*y*npdO!dd", &fd, &request, &ids, &length, &fast,
+                          &timeout_ms, &PyTuple_Type, &then, &byte_s, &busy_until))
         return NULL;
     PyObject *out = NULL;
     Py_ssize_t n_then = PyTuple_GET_SIZE(then);
@@ -554,6 +555,7 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
     Py_ssize_t n_ids = ids.len;
     int last = id_bytes[n_ids - 1];
     int os_error = 0, memory = 0, state = NEED_MORE;
+    double free_at = 0; /* when the bus is free of what this call wrote */
     Stream s = {0};
 
     /* The statuses of a read are this long; they cannot be in before the request and
@@ -563,7 +565,9 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
     Py_BEGIN_ALLOW_THREADS
     os_error = write_all(fd, request.buf, request.len);
     double t = now_s(), deadline = t + timeout_ms * 1e-3;
-    double earliest = t + (double)(request.len + expected) * byte_s;
+    /* The bus may still carry the goals written after the last read (busy_until): the
+     * request goes out behind them. */
+    double earliest = (t > busy_until ? t : busy_until) + (double)(request.len + expected) * byte_s;
     if (os_error == 0 && add_event(&ev, 't', t, -1, 0, 0) < 0)
         memory = 1;
     int timed_out = 0;
@@ -578,8 +582,10 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
             /* the bus is free: the goals go out now, while the statuses are decoded */
             for (; n_sent < n_then && os_error == 0; n_sent++) {
                 os_error = write_all(fd, packets[n_sent].buf, packets[n_sent].len);
-                if (os_error == 0 && add_event(&ev, 't', now_s(), n_sent, 0, 0) < 0)
+                double at = now_s();
+                if (os_error == 0 && add_event(&ev, 't', at, n_sent, 0, 0) < 0)
                     memory = 1;
+                free_at = (at > free_at ? at : free_at) + (double)packets[n_sent].len * byte_s;
                 sent[n_sent] = COMM_SUCCESS;
             }
             continue;
@@ -632,10 +638,14 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
     if (os_error == 0 && !memory && s.hit_timeout && add_event(&ev, 'o', now_s(), 0, 0, 0) < 0)
         memory = 1;
     /* What did not ride on the read goes out after it, as DxlBus.sync_read sends it. */
+    if (free_at == 0)
+        free_at = now_s(); /* no goals rode on the read: the bus is free once it is done */
     for (; n_sent < n_then && os_error == 0 && !memory; n_sent++) {
         os_error = write_all(fd, packets[n_sent].buf, packets[n_sent].len);
-        if (os_error == 0 && add_event(&ev, 't', now_s(), n_sent, 0, 0) < 0)
+        double at = now_s();
+        if (os_error == 0 && add_event(&ev, 't', at, n_sent, 0, 0) < 0)
             memory = 1;
+        free_at = (at > free_at ? at : free_at) + (double)packets[n_sent].len * byte_s;
         sent[n_sent] = COMM_SUCCESS;
     }
     Py_END_ALLOW_THREADS
@@ -677,9 +687,9 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
         Py_XDECREF(code);
     }
     if (!bad)
-        out = Py_BuildValue("(OOOOnONN)", PyTuple_GET_ITEM(res, 0), PyTuple_GET_ITEM(res, 1),
+        out = Py_BuildValue("(OOOOnONNd)", PyTuple_GET_ITEM(res, 0), PyTuple_GET_ITEM(res, 1),
                             PyTuple_GET_ITEM(res, 2), PyTuple_GET_ITEM(res, 3), s.pos, all,
-                            events, sent_list);
+                            events, sent_list, free_at);
     else
         Py_XDECREF(events), Py_XDECREF(sent_list);
     Py_XDECREF(all);

@@ -21,7 +21,16 @@ def transact(
     timeout_ms: float,
     then: tuple[bytes, ...],
     byte_s: float,
+    busy_until: float,
     /,
 ) -> tuple[
-    int, int | None, Any, dict[int, int], int, bytes, list[tuple[str, float, bytes]], list[int]
+    int,
+    int | None,
+    Any,
+    dict[int, int],
+    int,
+    bytes,
+    list[tuple[str, float, bytes]],
+    list[int],
+    float,
 ]: ...

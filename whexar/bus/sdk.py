@@ -238,6 +238,9 @@ class DxlBus:
         self.native = native and wire.NATIVE is not None
         """Whether the cycle's transactions take the compiled path."""
         self._requests: dict[tuple[int, int, bool, tuple[int, ...]], bytes | None] = {}
+        self._bus_free_at = 0.0
+        """When the goals the last read carried are off the wire (monotonic s): the next
+        read's statuses cannot start before (:func:`whexar.bus.wire`'s ``transact``)."""
 
     def _lost(self, exc: OSError) -> DeviceGoneError:
         """The error to raise, from ``exc``, for a port that raised it."""
@@ -449,7 +452,7 @@ class DxlBus:
         port.clearPort()  # as the SDK's txPacket
         port.setPacketTimeout((11 + length) * len(ids))  # as its syncReadTx: the same deadline
         assert wire.NATIVE is not None
-        result, failed, data, errors, taken, received, events, sent = wire.NATIVE.transact(
+        result, failed, data, errors, taken, received, events, sent, free = wire.NATIVE.transact(
             fd,
             request,
             bytes(ids),
@@ -458,7 +461,9 @@ class DxlBus:
             port.packet_timeout,
             tuple(then),
             10.0 / port.getBaudRate(),  # 8N1: 10 bits a byte
+            self._bus_free_at,
         )
+        self._bus_free_at = free
         if taken < len(received):  # left unread, as the SDK would have left them
             port._rx += received[taken:]
         direct = getattr(port, "tap_direct", None)
