@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import Final
 
+from whexar.bus import wire
 from whexar.errors import DeviceError, UsageError
 
 HEADER: Final = b"\xff\xff\xfd\x00"
@@ -165,9 +166,10 @@ _CRC_HEADER: Final = _crc_byte(_CRC_FF_FF_FD, 0x00)
 """Running CRCs after ``FF FF FD`` and after the whole header: every packet starts so."""
 
 
-def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
+def crc16_py(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
     """CRC-16 (poly 0x8005) of ``data`` continuing from ``crc`` (16-bit); equals the SDK's
-    ``updateCRC``, byte for byte its table loop, but two bytes per step."""
+    ``updateCRC``, byte for byte its table loop, but two bytes per step. The pure-Python
+    path of :func:`crc16`."""
     n = len(data)
     words = n >> 1
     unpack = _WORD_UNPACKERS.get(words) or _word_unpacker(words)
@@ -179,7 +181,7 @@ def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
     return crc
 
 
-def _packet_crc(packet: bytes | bytearray, end: int) -> int:
+def _packet_crc_py(packet: bytes | bytearray, end: int) -> int:
     """CRC of ``packet[:end]``, a packet that starts with :data:`HEADER`, copying nothing.
 
     Starts from the header's constant CRC after 3 or 4 of its bytes, whichever leaves
@@ -195,6 +197,23 @@ def _packet_crc(packet: bytes | bytearray, end: int) -> int:
     for word in unpack(packet, at):
         crc = table[crc ^ word]
     return crc
+
+
+if wire.NATIVE is not None:  # the same CRC compiled (tests/bus/test_wire.py: equal)
+    _crc_c: Callable[..., int] = wire.NATIVE.crc16
+
+    def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
+        """CRC-16 (poly 0x8005) of ``data`` continuing from ``crc`` (16-bit): the SDK's
+        ``updateCRC``, compiled (:mod:`whexar.bus.wire`; :func:`crc16_py` where it is not
+        built)."""
+        return _crc_c(data, crc)
+
+    def _packet_crc(packet: bytes | bytearray, end: int) -> int:
+        return _crc_c(memoryview(packet)[:end])
+
+else:  # pragma: no cover — where the compiled path is not built
+    crc16 = crc16_py
+    _packet_crc = _packet_crc_py
 
 
 def stuff(body: bytes | bytearray) -> bytes:
