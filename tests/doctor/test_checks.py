@@ -95,6 +95,7 @@ def env(tmp_path: Path) -> Environment:
         python_version=(3, 11, 7),
         version=lambda name: {"whexar": "0.1.0", "dynamixel-sdk": "4.1.2"}.get(name),
         requirements=lambda: ["dynamixel-sdk>=4.1", 'mujoco>=3.3; extra == "sim"'],
+        native_bus=lambda: "",
     )
 
 
@@ -489,6 +490,14 @@ def test_a_missing_or_old_package_fails(env: Environment) -> None:
     )["versions"]
     assert got.status is Status.FAIL
     assert got.details == ("dynamixel-sdk 3.7.31 is older than 4.1", "smbus2 is not installed")
+
+
+def test_a_bus_without_its_compiled_path_warns(env: Environment) -> None:
+    got = results(replace(env, native_bus=lambda: "the compiled bus path is not built"))
+    versions = got["versions"]
+    assert versions.status is Status.WARN
+    assert "python3-dev" in (versions.fix or "")
+    assert versions.details == ("the compiled bus path is not built",)
 
 
 def test_the_installed_packages_satisfy_the_real_requirements() -> None:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from whexar.bus import wire
 from whexar.config import RobotConfig
 from whexar.runtime.clock import monotonic
 from whexar.sensors.lsm9ds1 import I2CBus
@@ -137,6 +138,8 @@ class Environment:
     """The installed version of a distribution, ``None`` when it is not installed."""
     requirements: Callable[[], Sequence[str]] = _requirements
     """whexar's requirements as its metadata lists them (``"dynamixel-sdk>=4.1"``)."""
+    native_bus: Callable[[], str] = wire.why_not
+    """Why the compiled bus path (:mod:`whexar.bus.wire`) is not loaded; empty when it is."""
 
     @property
     def servo_port(self) -> str:

@@ -164,7 +164,20 @@ def check_versions(env: Environment, found: Findings) -> CheckResult:
             "pip install -e . (in the whexar folder, with its virtual environment active)",
             tuple(problems),
         )
-    return ok(name, f"Python {python}, whexar {whexar}, every required package installed")
+    why = env.native_bus()
+    if why:  # it works without: the SDK's path, at some three times the CPU (docs/bus.md)
+        return warn(
+            name,
+            f"Python {python}, whexar {whexar}; the compiled bus path is not built",
+            "sudo apt-get install gcc python3-dev, then reinstall whexar "
+            "(pip install --force-reinstall --no-deps .)",
+            (why,),
+        )
+    return ok(
+        name,
+        f"Python {python}, whexar {whexar}, every required package installed, "
+        "the bus path compiled",
+    )
 
 
 def reason(exc: OSError) -> str:
