@@ -479,6 +479,25 @@ static int write_all(int fd, const uint8_t *data, Py_ssize_t n)
     return 0;
 }
 
+/* Write the packets of then from *n_sent on, each reported as an event; *free_at moves
+ * to when the bus is free of them (their bytes' wire time).  0, or an errno. */
+static int send_then(int fd, Py_buffer *packets, Py_ssize_t n_then, Py_ssize_t *n_sent,
+                     int *sent, Events *ev, double byte_s, double *free_at, int *memory)
+{
+    for (; *n_sent < n_then; (*n_sent)++) {
+        Py_buffer *p = &packets[*n_sent];
+        int error = write_all(fd, p->buf, p->len);
+        if (error != 0)
+            return error;
+        double at = now_s();
+        if (add_event(ev, 't', at, *n_sent, 0, 0) < 0)
+            *memory = 1;
+        *free_at = (at > *free_at ? at : *free_at) + (double)p->len * byte_s;
+        sent[*n_sent] = COMM_SUCCESS;
+    }
+    return 0;
+}
+
 /* The last servo's status lies whole at the end of what was received (DxlBus's
  * _tail_complete): nothing more will answer, the half-duplex bus is free. */
 static int tail_complete(const uint8_t *buf, Py_ssize_t n_buf, int last, Py_ssize_t length)
@@ -580,14 +599,8 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
         }
         if (n_sent < n_then && !fast && tail_complete(buf, received, last, length)) {
             /* the bus is free: the goals go out now, while the statuses are decoded */
-            for (; n_sent < n_then && os_error == 0; n_sent++) {
-                os_error = write_all(fd, packets[n_sent].buf, packets[n_sent].len);
-                double at = now_s();
-                if (os_error == 0 && add_event(&ev, 't', at, n_sent, 0, 0) < 0)
-                    memory = 1;
-                free_at = (at > free_at ? at : free_at) + (double)packets[n_sent].len * byte_s;
-                sent[n_sent] = COMM_SUCCESS;
-            }
+            os_error = send_then(fd, packets, n_then, &n_sent, sent, &ev, byte_s, &free_at,
+                                 &memory);
             continue;
         }
         /* Sleep while the statuses cannot all be in yet, rather than wake for every
@@ -640,14 +653,8 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
     /* What did not ride on the read goes out after it, as DxlBus.sync_read sends it. */
     if (free_at == 0)
         free_at = now_s(); /* no goals rode on the read: the bus is free once it is done */
-    for (; n_sent < n_then && os_error == 0 && !memory; n_sent++) {
-        os_error = write_all(fd, packets[n_sent].buf, packets[n_sent].len);
-        double at = now_s();
-        if (os_error == 0 && add_event(&ev, 't', at, n_sent, 0, 0) < 0)
-            memory = 1;
-        free_at = (at > free_at ? at : free_at) + (double)packets[n_sent].len * byte_s;
-        sent[n_sent] = COMM_SUCCESS;
-    }
+    if (os_error == 0 && !memory)
+        os_error = send_then(fd, packets, n_then, &n_sent, sent, &ev, byte_s, &free_at, &memory);
     Py_END_ALLOW_THREADS
 
     if (os_error != 0) {
