@@ -57,12 +57,18 @@ _BELOW = " " * 12
 """Indent of what follows an event line (a traceback), under the event's name."""
 
 
-def _event_printer(prefix: str = "") -> Observer:
-    """An observer printing each runtime event as one line, each line starting with ``prefix``."""
+def _event_printer(prefix: str = "", shown: list[Message] | None = None) -> Observer:
+    """An observer printing each runtime event as one line, each line starting with
+    ``prefix``; the recorder's events printed (a deletion, a stop) go into ``shown``."""
+    from whexar.actors.messages import RecordingDeleted, RecordingStopped
+
+    recorder_events = (RecordingDeleted, RecordingStopped)
 
     def print_event(channel: str, msg: Message) -> None:
         if channel != EVENTS_CHANNEL:
             return
+        if shown is not None and isinstance(msg, recorder_events):
+            shown.append(msg)
         fields = ", ".join(
             f"{name}={getattr(msg, name)!r}"
             for name in msg.__dataclass_fields__
@@ -208,7 +214,9 @@ def _run(args: argparse.Namespace) -> int:
     from whexar.runtime.supervisor import Runtime
 
     graph = load_run_graph(args)
-    printer = None if args.quiet else _event_printer(CLEAR_LINE if args.keyboard else "")
+    shown: list[Message] = []
+    """The recorder's events printed while the runtime ran."""
+    printer = None if args.quiet else _event_printer(CLEAR_LINE if args.keyboard else "", shown)
     live = None
     if args.live is not None:
         from whexar.record.live import LiveView
@@ -254,6 +262,12 @@ def _run(args: argparse.Namespace) -> int:
     finally:
         if recorder is not None:
             recorder.close()
+            if printer is not None:
+                # The budget's last checks end with the run (a recording process tells of
+                # its first one when it can): what the runtime did not see is printed now.
+                for event in recorder.events:
+                    if not any(event is seen for seen in shown):
+                        printer(EVENTS_CHANNEL, event)
             if not args.no_record:
                 stopped = "" if recorder.stopped is None else f" (stopped: {recorder.stopped})"
                 print(f"recording: {recorder.path}{stopped}", flush=True)
