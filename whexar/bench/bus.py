@@ -43,6 +43,7 @@ import signal
 import statistics
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -284,6 +285,9 @@ class Realtime:
 
     hz: float
     cpu_ms: float
+    port_thread_ms: float | None = None
+    """Of ``cpu_ms``, the share of the thread that owns the port (the bus's transactions);
+    the rest is the event loop's (the runtime, the scheduler, the goal source)."""
 
 
 def realtime_run(
@@ -297,10 +301,15 @@ def realtime_run(
     collection would be billed to the cycles).
     """
     marks: list[tuple[float, float]] = []
+    port_cpu: list[float] = []
+    clock: list[int] = []
 
     def observe(channel: str, msg: object) -> None:
         if channel == "state":
             marks.append((time.perf_counter(), time.process_time()))
+            if not clock:
+                clock.extend(_port_thread_clock())
+            port_cpu.append(time.clock_gettime(clock[0]) if clock else math.nan)
 
     async def main() -> None:
         graph = _graph(path, plan, native=native)
@@ -309,8 +318,20 @@ def realtime_run(
 
     with emulator_process() as path:
         run_loop(main)
-    kept = [m for m in marks if m[0] >= marks[0][0] + warm_s] if marks else []
-    return _per_cycle(kept)
+    start = next((k for k, m in enumerate(marks) if m[0] >= marks[0][0] + warm_s), len(marks))
+    out = _per_cycle(marks[start:])
+    if len(marks) - start < 2 or not clock:
+        return out
+    port_ms = (port_cpu[-1] - port_cpu[start]) / (len(marks) - start - 1) * 1e3
+    return Realtime(out.hz, out.cpu_ms, port_ms)
+
+
+def _port_thread_clock() -> list[int]:
+    """The CPU clock of the thread that owns the servo port, when there is one."""
+    for thread in threading.enumerate():
+        if thread.name == "servo-port" and thread.ident is not None:
+            return [time.pthread_getcpuclockid(thread.ident)]
+    return []
 
 
 def _per_cycle(marks: list[tuple[float, float]]) -> Realtime:
@@ -513,6 +534,14 @@ def run(progress: Progress = None, *, seconds: float = 3.0) -> Report:
             for path in REALTIME_PATHS
             if any(path in p.realtime for p in plans)
         },
+        "realtime_port_thread_ms_per_cycle": {
+            path: {
+                p.name: _ms(r.port_thread_ms)
+                for p in plans
+                if (r := p.realtime.get(path)) is not None and r.port_thread_ms is not None
+            }
+            for path in ("native", "sdk")
+        },
     }
     return Report(
         "bus",
@@ -523,9 +552,26 @@ def run(progress: Progress = None, *, seconds: float = 3.0) -> Report:
             "real time over a pty to `whexar emulate`: native / sdk, the runtime with the "
             "cycle's transactions compiled or dynamixel-sdk's; loop / loop_sdk, whexar's bus "
             "path alone (no runtime); baseline, a plain dynamixel-sdk loop as users write it",
+            *_split_notes(plans),
         ],
         data=data,
     )
+
+
+def _split_notes(plans: list[PlanFigures]) -> list[str]:
+    """A line per real-time run of the runtime: its CPU, the port's thread's and the
+    event loop's."""
+    lines = []
+    for p in plans:
+        for path in ("native", "sdk"):
+            r = p.realtime.get(path)
+            if r is None or r.port_thread_ms is None or not math.isfinite(r.cpu_ms):
+                continue
+            lines.append(
+                f"{p.name}, {path}: {r.cpu_ms:.2f} ms a cycle = port thread "
+                f"{r.port_thread_ms:.2f} + event loop {r.cpu_ms - r.port_thread_ms:.2f}"
+            )
+    return lines
 
 
 REALTIME_PATHS = ("native", "sdk", "loop", "loop_sdk", "baseline")
