@@ -9,11 +9,15 @@ cut short, interleaved, padded with garbage, or made of packets of other servos.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import os
 import random
 import shutil
 import sysconfig
+import threading
 import time
+import tty
 from pathlib import Path
 from typing import Any, cast
 
@@ -26,6 +30,7 @@ from whexar.bus.emulator.chain import FaultState
 from whexar.bus.emulator.pty import PtyEmulator
 from whexar.bus.protocol import crc16, crc16_py, encode_fast_status, encode_status
 from whexar.bus.sdk import DxlBus, SyncReadResult, _Capture, open_port, tap_port
+from whexar.errors import DeviceGoneError
 from whexar.runtime.clock import monotonic
 from whexar.runtime.harness import run_actors
 from whexar.runtime.messages import ActorFailed
@@ -377,3 +382,32 @@ def test_without_it_the_bus_says_so_once_and_takes_the_sdks_path(
     warnings = [m for m in fallen.messages("events") if isinstance(m, BusWarning)]
     assert [w.message for w in warnings] == ["the compiled bus path is not built (test)"]
     assert fallen.messages("state") == built.messages("state")
+
+
+@needs_native
+@pytest.mark.slow
+@pytest.mark.parametrize("native", [False, True])
+def test_a_port_that_vanishes_mid_read_is_a_gone_device(native: bool) -> None:
+    """The pty's other side closes while the servos answer (a USB adapter pulled out):
+    both paths raise :class:`DeviceGoneError` naming the port, nothing hangs."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    name = os.ttyname(slave)
+    port = open_port(name, 1_000_000)
+    os.close(slave)  # the port has its own descriptor
+
+    def pull_out() -> None:
+        os.read(master, 64)  # the request
+        os.write(master, encode_status(1, 0, b"\x00\x08\x00\x00"))  # one servo answers
+        time.sleep(0.005)
+        os.close(master)
+
+    puller = threading.Thread(target=pull_out)
+    puller.start()
+    try:
+        with pytest.raises(DeviceGoneError, match=name):
+            DxlBus(port, native=native).sync_read(list(range(1, 43)), 132, 4)
+    finally:
+        puller.join()
+        with contextlib.suppress(Exception):
+            port.closePort()
