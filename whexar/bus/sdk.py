@@ -52,7 +52,7 @@ import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final, Protocol, TypeVar
+from typing import Any, Final, NamedTuple, Protocol, TypeVar
 
 import anyio
 import anyio.lowlevel
@@ -431,24 +431,17 @@ class DxlBus:
             return None
         if port.is_using:  # as the SDK's txPacket
             return SyncReadResult(int(dxl.COMM_PORT_BUSY), failed=ids[0])
+        ask = _Ask(request, ids, length, fast, then)
         try:
             if fd is not None:
-                return self._native_fd(port, fd, request, ids, length, fast, then)
-            return self._native_buffered(port, request, ids, length, fast, then)
+                return self._native_fd(port, fd, ask)
+            return self._native_buffered(port, ask)
         except OSError as exc:  # as _gone()
             raise self._lost(exc) from exc
 
-    def _native_fd(
-        self,
-        port: Any,
-        fd: int,
-        request: bytes,
-        ids: Sequence[int],
-        length: int,
-        fast: bool,
-        then: Sequence[bytes],
-    ) -> SyncReadResult:
+    def _native_fd(self, port: Any, fd: int, ask: _Ask) -> SyncReadResult:
         """A real port: the whole transaction in ``_wire.transact``, the GIL released."""
+        request, ids, length, fast, then = ask
         port.clearPort()  # as the SDK's txPacket
         port.setPacketTimeout((11 + length) * len(ids))  # as its syncReadTx: the same deadline
         assert wire.NATIVE is not None
@@ -478,20 +471,13 @@ class DxlBus:
                     chunk = chunk[:left]
                     left -= len(chunk)
                 report(kind, t + offset, chunk)
-        return self._native_result(result, failed, data, errors, ids, length, fast, sent)
+        return _native_result(result, failed, data, errors, ask, sent)
 
-    def _native_buffered(
-        self,
-        port: Any,
-        request: bytes,
-        ids: Sequence[int],
-        length: int,
-        fast: bool,
-        then: Sequence[bytes],
-    ) -> SyncReadResult:
+    def _native_buffered(self, port: Any, ask: _Ask) -> SyncReadResult:
         """A port that hands the reply over whole: the SDK's calls on it, in its order —
         write, arm the timeout, read what it would read, ask for the timeout where it
         would — and ``_wire.parse`` for the rest."""
+        request, ids, length, fast, then = ask
         port.clearPort()
         if port.writePort(request) != len(request):
             port.is_using = False
@@ -519,28 +505,39 @@ class DxlBus:
                 timed_out = True
             else:
                 received = received[:read] + port.peek()
-        return self._native_result(result, failed, data, errors, ids, length, fast, sent)
+        return _native_result(result, failed, data, errors, ask, sent)
 
-    @staticmethod
-    def _native_result(
-        result: int,
-        failed: int | None,
-        data: Any,
-        errors: dict[int, int],
-        ids: Sequence[int],
-        length: int,
-        fast: bool,
-        sent: list[int],
-    ) -> SyncReadResult:
-        if fast:
-            if result != COMM_SUCCESS:
-                out = SyncReadResult(result, failed=ids[0])
-            else:
-                out = _split_fast(data, ids, length)
+
+class _Ask(NamedTuple):
+    """One Sync Read on the compiled path: its request packet, the servos, the bytes of
+    each, fast or not, the packets that ride on it."""
+
+    request: bytes
+    ids: Sequence[int]
+    length: int
+    fast: bool
+    then: Sequence[bytes]
+
+
+def _native_result(
+    result: int,
+    failed: int | None,
+    data: Any,
+    errors: dict[int, int] | None,
+    ask: _Ask,
+    sent: list[int],
+) -> SyncReadResult:
+    """What ``_wire`` handed back, as :meth:`DxlBus.sync_read` returns it."""
+    ids = ask.ids
+    if ask.fast:
+        if result != COMM_SUCCESS:
+            out = SyncReadResult(result, failed=ids[0])
         else:
-            out = SyncReadResult(result, data, errors, None if failed is None else ids[failed])
-        out.sent = sent
-        return out
+            out = _split_fast(data, ids, ask.length)
+    else:
+        out = SyncReadResult(result, data, errors or {}, None if failed is None else ids[failed])
+    out.sent = sent
+    return out
 
 
 def _tail_of(buf: bytes, last: int, length: int) -> bool:
