@@ -411,3 +411,38 @@ def test_a_port_that_vanishes_mid_read_is_a_gone_device(native: bool) -> None:
         puller.join()
         with contextlib.suppress(Exception):
             port.closePort()
+
+
+@needs_native
+@pytest.mark.slow
+@pytest.mark.parametrize("native", [False, True])
+def test_bytes_after_the_last_status_stay_unread_on_a_real_port(native: bool) -> None:
+    """A reply with bytes behind it (another transaction's, noise): the read takes what the
+    SDK takes, the rest stays in the port for the next one, and the tap sees only what
+    was read."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    port = open_port(os.ttyname(slave), 1_000_000)
+    os.close(slave)
+    tapped: list[tuple[str, bytes]] = []
+    tap_port(port, lambda kind, _t, data: tapped.append((kind, data)), monotonic)
+    reply = b"".join(encode_status(sid, 0, bytes((sid, 0, 0, 0))) for sid in (1, 2, 3))
+    noise = b"\x00\xff\xff\xfd\x00\x09"
+
+    def answer() -> None:
+        os.read(master, 64)
+        os.write(master, reply + noise)
+
+    answering = threading.Thread(target=answer)
+    answering.start()
+    try:
+        res = DxlBus(port, native=native).sync_read([1, 2, 3], 132, 4)
+        answering.join()
+        assert res.ok
+        assert res.data == {1: b"\x01\0\0\0", 2: b"\x02\0\0\0", 3: b"\x03\0\0\0"}
+        assert port.peek() == noise
+        port.closePort()  # the tap reports what it holds
+        assert b"".join(data for kind, data in tapped if kind == "rx") == reply
+    finally:
+        with contextlib.suppress(OSError):
+            os.close(master)
