@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import anyio
 import pytest
@@ -37,6 +39,9 @@ from whexar.record.writer import Recorder
 from whexar.runtime.clock import monotonic, wait_until
 from whexar.runtime.messages import Heartbeat
 from whexar.runtime.wiring import EVENTS_CHANNEL
+
+if TYPE_CHECKING:
+    from whexar.record.sidecar import RecorderProcess
 
 NOW = 1_700_000_000.0
 DAY = 86_400.0
@@ -451,6 +456,25 @@ def _beat(seq: int) -> Heartbeat:
     return Heartbeat(t=seq / 100, source="beat", seq=seq)
 
 
+def _feed_until(
+    recorder: RecorderProcess, done: Callable[[], bool], why: str, beats: int = 1
+) -> int:
+    """Hand ``recorder`` ``beats`` heartbeats at a time, write them and keep its budget,
+    as a runtime does, until ``done()`` (within 20 s, else ``why``); the next sequence
+    number."""
+    seq = 0
+    deadline = monotonic() + 20.0
+    while not done():
+        for _ in range(beats):
+            recorder("beats", _beat(seq))
+            seq += 1
+        recorder.write_pending()
+        recorder.keep_budget()
+        wait_until(monotonic() + 0.005)
+        assert monotonic() < deadline, why
+    return seq
+
+
 def test_a_recorder_deletes_before_it_writes_and_reports_it(tmp_path: Path) -> None:
     folder = tmp_path / "recordings"
     folder.mkdir()
@@ -527,16 +551,10 @@ def test_a_recording_process_over_its_budget_stops_and_ends_its_file(tmp_path: P
     path = tmp_path / "process.mcap"
     guard = BudgetGuard(Budget(max_total_bytes=30_000), path, None, period_s=0)
     recorder = RecorderProcess(path, guard=guard, chunk_size=1024, flush_period_s=0.01)
-    seq = 0
-    deadline = monotonic() + 20.0
-    while recorder.stopped is None:  # the runtime goes on; the file grows in the child
-        for _ in range(100):
-            recorder("beats", _beat(seq))
-            seq += 1
-        recorder.write_pending()
-        recorder.keep_budget()
-        wait_until(monotonic() + 0.005)
-        assert monotonic() < deadline, "the budget never stopped the recording"
+    # The runtime goes on; the file grows in the child.
+    seq = _feed_until(
+        recorder, lambda: recorder.stopped is not None, "the budget never stopped it", 100
+    )
     for _ in range(10):
         recorder("beats", _beat(seq))
         recorder.write_pending()  # let go: nothing is kept, and the pipe closes
@@ -584,15 +602,8 @@ def test_a_recording_process_deletes_in_its_own_process_and_reports_here(
     guard = BudgetGuard(Budget(max_age_s=DAY), path, folder, period_s=0)
     _no_disk_work_here(monkeypatch)
     recorder = RecorderProcess(path, guard=guard, flush_period_s=0.01)
-    seq = 0
-    deadline = monotonic() + 20.0
-    while len(recorder.events) < 3:  # the run goes on; the deletions come when done
-        recorder("beats", _beat(seq))
-        seq += 1
-        recorder.write_pending()
-        recorder.keep_budget()
-        wait_until(monotonic() + 0.005)
-        assert monotonic() < deadline, "the recording process never reported"
+    # The run goes on; the deletions come when done.
+    _feed_until(recorder, lambda: len(recorder.events) >= 3, "the recording process never reported")
     assert not any(old.exists() for old in olds)
     deleted = [e for e in recorder.events if isinstance(e, RecordingDeleted)]
     assert deleted == recorder.events

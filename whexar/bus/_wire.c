@@ -591,6 +591,8 @@ static PyObject *py_transact(PyObject *self, PyObject *args)
         memory = 1;
     int timed_out = 0;
     while (os_error == 0 && !memory) {
+        /* Parsed from the start each time: the SDK's reading is a function of the bytes
+         * received, and a read comes in a few chunks. */
         s = (Stream){buf, received, 0, timed_out, 0};
         state = parse_any(&s, id_bytes, n_ids, length, fast, &o);
         if (state != NEED_MORE) {

@@ -237,7 +237,7 @@ class DxlBus:
         self.ph = PacketHandler()
         self.native = native and wire.NATIVE is not None
         """Whether the cycle's transactions take the compiled path."""
-        self._requests: dict[tuple[int, int, bool, tuple[int, ...]], bytes | None] = {}
+        self._requests: dict[tuple[int, int, bool, bytes], bytes | None] = {}
         self._bus_free_at = 0.0
         """When the goals the last read carried are off the wire (monotonic s): the next
         read's statuses cannot start before (:func:`whexar.bus.wire`'s ``transact``)."""
@@ -408,8 +408,8 @@ class DxlBus:
 
     # ---------------------------------------------------------- the compiled path
 
-    def _request(self, start: int, length: int, ids: Sequence[int], fast: bool) -> bytes | None:
-        key = (start, length, fast, tuple(ids))
+    def _request(self, start: int, length: int, ids: bytes, fast: bool) -> bytes | None:
+        key = (start, length, fast, ids)
         request = self._requests.get(key, b"")
         if request == b"":
             if len(self._requests) > 64:  # a cycle repeats a few; a scan must not pile up
@@ -426,12 +426,16 @@ class DxlBus:
         fd = getattr(port, "_fd", None) if isinstance(port, WaitingPortHandler) else None
         if fd is None and (isinstance(port, WaitingPortHandler) or not hasattr(port, "peek")):
             return None
-        request = self._request(start, length, ids, fast)
+        try:
+            id_bytes = bytes(ids)
+        except ValueError:  # not a servo ID: the SDK's path says what it makes of it
+            return None
+        request = self._request(start, length, id_bytes, fast)
         if request is None or len(ids) > 253:
             return None
         if port.is_using:  # as the SDK's txPacket
             return SyncReadResult(int(dxl.COMM_PORT_BUSY), failed=ids[0])
-        ask = _Ask(request, ids, length, fast, then)
+        ask = _Ask(request, ids, id_bytes, length, fast, then)
         try:
             if fd is not None:
                 return self._native_fd(port, fd, ask)
@@ -441,14 +445,14 @@ class DxlBus:
 
     def _native_fd(self, port: Any, fd: int, ask: _Ask) -> SyncReadResult:
         """A real port: the whole transaction in ``_wire.transact``, the GIL released."""
-        request, ids, length, fast, then = ask
+        request, ids, id_bytes, length, fast, then = ask
         port.clearPort()  # as the SDK's txPacket
         port.setPacketTimeout((11 + length) * len(ids))  # as its syncReadTx: the same deadline
         assert wire.NATIVE is not None
         result, failed, data, errors, taken, received, events, sent, free = wire.NATIVE.transact(
             fd,
             request,
-            bytes(ids),
+            id_bytes,
             length,
             fast,
             port.packet_timeout,
@@ -477,7 +481,7 @@ class DxlBus:
         """A port that hands the reply over whole: the SDK's calls on it, in its order —
         write, arm the timeout, read what it would read, ask for the timeout where it
         would — and ``_wire.parse`` for the rest."""
-        request, ids, length, fast, then = ask
+        request, ids, id_bytes, length, fast, then = ask
         port.clearPort()
         if port.writePort(request) != len(request):
             port.is_using = False
@@ -488,7 +492,7 @@ class DxlBus:
         if then and not fast and _tail_of(received, ids[-1], length):
             sent = [self._write(p) for p in then]
         assert wire.NATIVE is not None
-        parse, id_bytes = wire.NATIVE.parse, bytes(ids)
+        parse = wire.NATIVE.parse
         read, timed_out = 0, False
         while True:
             done, taken, result, failed, data, errors, _ = parse(
@@ -514,6 +518,8 @@ class _Ask(NamedTuple):
 
     request: bytes
     ids: Sequence[int]
+    id_bytes: bytes
+    """The same IDs, as ``_wire`` takes them."""
     length: int
     fast: bool
     then: Sequence[bytes]

@@ -88,16 +88,16 @@ def check_sensor_board(env: Environment, found: Findings) -> CheckResult:
     """The board answers on its port with whexar's frames, at the configured rate."""
     spec = env.config.sensor_board
     path = Path(env.board_port_name)
-    if not path.exists():
-        return fail(
-            NAME,
-            f"{path} does not exist: the sensor board is not plugged in, or is another device",
-            "plug the Mega's USB cable in and find its port with: ls /dev/serial/by-id/; "
-            "then pass --board-port DEVICE or set [sensor_board] port",
-        )
-    denied = host.permission(env, path, NAME)
-    if denied is not None:
-        return denied
+    absent = host.device(
+        env,
+        path,
+        NAME,
+        "the sensor board is not plugged in, or is another device",
+        "plug the Mega's USB cable in and find its port with: ls /dev/serial/by-id/; "
+        "then pass --board-port DEVICE or set [sensor_board] port",
+    )
+    if absent is not None:
+        return absent
     port = _open(env, str(path), spec.baudrate)
     if isinstance(port, CheckResult):
         return port

@@ -27,15 +27,23 @@ def check_servo_port(env: Environment, found: Findings) -> CheckResult:
     """The servo port exists and this process may read and write it (group ``dialout``)."""
     name = "servo port"
     path = Path(env.servo_port)
+    absent = device(
+        env,
+        path,
+        name,
+        "the U2D2 is not plugged in, or is another device",
+        "plug the U2D2 in and find its port with: ls /dev/serial/by-id/; then pass "
+        "--port DEVICE or set [bus] port in the configuration",
+    )
+    return absent or ok(name, f"{path} exists and is readable and writable")
+
+
+def device(env: Environment, path: Path, name: str, why: str, fix: str) -> CheckResult | None:
+    """Check ``name`` failed: the device ``path`` does not exist (``why``, ``fix``) or this
+    process may not use it (:func:`permission`); ``None`` when it is there to open."""
     if not path.exists():
-        return fail(
-            name,
-            f"{path} does not exist: the U2D2 is not plugged in, or is another device",
-            "plug the U2D2 in and find its port with: ls /dev/serial/by-id/; then pass "
-            "--port DEVICE or set [bus] port in the configuration",
-        )
-    denied = permission(env, path, name)
-    return denied or ok(name, f"{path} exists and is readable and writable")
+        return fail(name, f"{path} does not exist: {why}", fix)
+    return permission(env, path, name)
 
 
 def permission(env: Environment, path: Path, name: str) -> CheckResult | None:

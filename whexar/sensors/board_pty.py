@@ -22,12 +22,9 @@ frames are lost, as a USB CDC device's are when no host polls it.
 
 from __future__ import annotations
 
-import contextlib
 import errno
-import fcntl
 import os
 import threading
-import tty
 from dataclasses import dataclass
 from types import TracebackType
 
@@ -35,6 +32,7 @@ import anyio
 
 from whexar.runtime.clock import Clock
 from whexar.runtime.clock import run as run_loop
+from whexar.runtime.pty import ServedPty
 from whexar.sensors.board_emulator import EmulatedBoardLink, SensorBoardEmulator
 
 __all__ = ["BoardPty", "BoardPtyStats"]
@@ -55,13 +53,8 @@ class BoardPty:
     def __init__(self, board: SensorBoardEmulator) -> None:
         self.board = board
         self.stats = BoardPtyStats()
-        self._master, self._slave = os.openpty()
-        # The slave stays open here, so the pty survives clients that open and close it.
-        tty.setraw(self._slave)
-        self.path: str = os.ttyname(self._slave)
-        flags = fcntl.fcntl(self._master, fcntl.F_GETFL)
-        fcntl.fcntl(self._master, fcntl.F_SETFL, flags | os.O_NONBLOCK)
-        self._wake_r, self._wake_w = os.pipe()
+        self._pty = ServedPty.open()  # raw, the slave held open, a wake-up pipe
+        self.path: str = self._pty.path
         self._thread = threading.Thread(target=self._run, name="board-pty", daemon=True)
         self.error: BaseException | None = None
         """What stopped the serving thread early, if anything did."""
@@ -81,12 +74,9 @@ class BoardPty:
     def close(self) -> None:
         """Stop serving and close the pty."""
         if self._thread.is_alive():
-            with contextlib.suppress(OSError):
-                os.write(self._wake_w, b"x")
+            self._pty.wake()
             self._thread.join(timeout=5)
-        for fd in (self._master, self._slave, self._wake_r, self._wake_w):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self._pty.close()
 
     # ------------------------------------------------------------------ thread
 
@@ -101,14 +91,14 @@ class BoardPty:
         async with anyio.create_task_group() as tg:
             tg.start_soon(self._send_frames, link)
             tg.start_soon(self._take_commands, link)
-            await anyio.wait_readable(self._wake_r)
+            await anyio.wait_readable(self._pty.wake_r)
             tg.cancel_scope.cancel()
 
     async def _send_frames(self, link: EmulatedBoardLink) -> None:
         while True:
             data = await link.receive()
             try:
-                written = os.write(self._master, data)
+                written = os.write(self._pty.master, data)
             except BlockingIOError:
                 self.stats.lost += 1  # nobody reads: the queue is full
                 continue
@@ -119,9 +109,9 @@ class BoardPty:
 
     async def _take_commands(self, link: EmulatedBoardLink) -> None:
         while True:
-            await anyio.wait_readable(self._master)
+            await anyio.wait_readable(self._pty.master)
             try:
-                data = os.read(self._master, 4096)
+                data = os.read(self._pty.master, 4096)
             except BlockingIOError:
                 continue
             except OSError as exc:

@@ -36,18 +36,16 @@ arrival times and ``wait_until()`` to hold a reply until its time.
 
 from __future__ import annotations
 
-import contextlib
 import errno
-import fcntl
 import os
 import select
 import threading
-import tty
 from dataclasses import dataclass
 from types import TracebackType
 from typing import TYPE_CHECKING, Final
 
 from whexar.runtime.clock import monotonic, wait_until
+from whexar.runtime.pty import ServedPty
 
 if TYPE_CHECKING:
     from whexar.bus.emulator.chain import ServoChain, Transaction
@@ -108,14 +106,8 @@ class PtyEmulator:
         self.last_error: BaseException | None = None
         self.last_transaction: Transaction | None = None
         """The last request the chain handled, with its reply and bus cost."""
-        self._master, self._slave = os.openpty()
-        # The slave stays open here, so the pty survives clients that open
-        # and close it; raw mode so that nothing is echoed or translated.
-        tty.setraw(self._slave)
-        self.path: str = os.ttyname(self._slave)
-        flags = fcntl.fcntl(self._master, fcntl.F_GETFL)
-        fcntl.fcntl(self._master, fcntl.F_SETFL, flags | os.O_NONBLOCK)
-        self._wake_r, self._wake_w = os.pipe()
+        self._pty = ServedPty.open()  # raw, the slave held open, a wake-up pipe
+        self.path: str = self._pty.path
         self._buffer = bytearray()
         self._last_rx = 0.0
         self._t0 = monotonic()
@@ -149,11 +141,11 @@ class PtyEmulator:
             self._serving = True
         try:
             while not self._stop.is_set():
-                ready, _, _ = select.select([self._master, self._wake_r], [], [])
-                if self._wake_r in ready:
+                ready, _, _ = select.select([self._pty.master, self._pty.wake_r], [], [])
+                if self._pty.wake_r in ready:
                     break
                 try:
-                    data = os.read(self._master, 65536)
+                    data = os.read(self._pty.master, 65536)
                 except BlockingIOError:
                     continue
                 except OSError as exc:
@@ -170,8 +162,7 @@ class PtyEmulator:
     def close(self) -> None:
         """Stop serving and close the pty (idempotent; safe from a signal handler)."""
         self._stop.set()
-        with contextlib.suppress(OSError):
-            os.write(self._wake_w, b"x")
+        self._pty.wake()
         thread = self._thread
         if thread is not None and thread is not threading.current_thread():
             thread.join()
@@ -185,9 +176,7 @@ class PtyEmulator:
             if self._released:
                 return
             self._released = True
-        for fd in (self._master, self._slave, self._wake_r, self._wake_w):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        self._pty.close()
 
     def __enter__(self) -> PtyEmulator:
         if self._thread is None:
@@ -283,7 +272,7 @@ class PtyEmulator:
                     # Between chunks a coarse sleep will do; only the last byte is exact.
                     left = flush - monotonic()
                     if left > 0:
-                        select.select([self._wake_r], [], [], left)
+                        select.select([self._pty.wake_r], [], [], left)
                 self._write(reply[sent:upto])
                 sent = upto
             flush += USB_FLUSH_S
@@ -292,12 +281,12 @@ class PtyEmulator:
         view = memoryview(data)
         while view:
             try:
-                sent = os.write(self._master, view)
+                sent = os.write(self._pty.master, view)
             except BlockingIOError:
                 # The pty is full: nobody reads it. Wait a little, then give up
                 # (the next client's open or clearPort() flushes it anyway).
                 readable, writable, _ = select.select(
-                    [self._wake_r], [self._master], [], _WRITE_STALL_S
+                    [self._pty.wake_r], [self._pty.master], [], _WRITE_STALL_S
                 )
                 if readable or not writable:
                     self.stats.unsent_bytes += len(view)
