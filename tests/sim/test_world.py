@@ -14,7 +14,14 @@ from whexar.bus.control_table import CENTER_TICKS
 from whexar.bus.emulator.chain import ServoChain
 from whexar.config import RobotConfig
 from whexar.sim.model import load_model
-from whexar.sim.motors import MAX_DUTY, MOTORS, TICKS_PER_RAD, position_duty_per_rad
+from whexar.sim.motors import (
+    MAX_DUTY,
+    MOTORS,
+    TICKS_PER_RAD,
+    MotorModel,
+    MotorSource,
+    position_duty_per_rad,
+)
 from whexar.sim.run import SimResult, seated_angles, simulate
 from whexar.sim.terrain import slope
 from whexar.sim.world import SimWorld, fsr_counts
@@ -24,13 +31,13 @@ CFG = RobotConfig()
 FEMUR = 3  # servo ID of RF's femur (eq. 4.1), an MX-106
 
 
-def _held_world() -> tuple[SimWorld, ServoChain, mujoco.MjModel]:
+def _held_world(motors: MotorSource = "bam") -> tuple[SimWorld, ServoChain, mujoco.MjModel]:
     """The robot in the air without gravity, its body held still, every servo holding."""
     model = load_model(CFG)
     model.opt.gravity[:] = 0.0
     model.dof_armature[0:6] = 1e9  # the body does not move
     chain = ServoChain.for_models(CFG.servos(), baudrate=CFG.bus.baudrate)
-    world = SimWorld(model, chain, cfg=CFG)
+    world = SimWorld(model, chain, cfg=CFG, motor_source=motors)
     world.set_pose(seated_angles(CFG), base_xyz=(0.0, 0.0, 1.0))
     for servo in chain.servos.values():
         servo.set_register("goal_position", round(servo.position))
@@ -62,8 +69,8 @@ def test_a_position_step_follows_the_motor_law() -> None:
         desired += max(-vmax * h, min(vmax * h, q0 + 0.5 - desired))
         duty = max(-MAX_DUTY, min(MAX_DUTY, kp * (desired - q)))
         tau = motor.kt * (duty * volts - motor.kt * w) / motor.resistance
-        tau -= motor.viscous * w + motor.coulomb * math.tanh(w / 1e-3)
-        w += tau / inertia * h
+        net = tau - motor.viscous * w - _unloaded_friction(motor, tau, w) * math.tanh(w / 1e-3)
+        w += net / inertia * h
         q += w * h
         if k % 1000 == 0:
             reference[round(k * h, 3)] = q - q0
@@ -80,6 +87,40 @@ def test_a_position_step_follows_the_motor_law() -> None:
     # Present Current is the motor's torque over kt.
     amps = servo.register_value("present_current") * 3.36e-3
     assert abs(amps) < 0.5
+
+
+def _unloaded_friction(motor: MotorModel, tau: float, w: float) -> float:
+    """BAM's m6 friction budget with no external torque (bam/model.py)."""
+    g = motor.gear
+    if g is None:
+        return motor.coulomb
+    rest = math.exp(-(abs(w / g.dtheta_stribeck) ** g.alpha))
+    quad = g.load_friction_motor_quad * tau * tau
+    return (
+        motor.coulomb
+        + g.load_friction_motor * abs(tau)
+        + rest * (g.friction_stribeck + g.load_friction_motor_stribeck * abs(tau) + quad)
+    )
+
+
+@pytest.mark.parametrize(("motors", "holds"), [("bam", True), ("bam-m1", False)])
+def test_the_gears_hold_a_load_beyond_the_motors_torque(motors: MotorSource, holds: bool) -> None:
+    """An MX-64 coxa holding its goal against 6 N·m, its datasheet's stall torque: BAM's m6
+    gears hold it within the position loop's error (their friction grows with the load,
+    more when the load drives the motor), m1's motor alone (4.93 N·m stall) gives way."""
+    world, chain, _ = _held_world(motors)
+    coxa = world.by_servo[1]  # RF's coxa, an MX-64
+    assert chain.servos[1].model.name == "MX-64"
+    q0 = world.q[coxa.index]
+    world.data.qfrc_applied[coxa.dadr] = -6.0
+    for k in range(1, 51):
+        for s in chain.servos.values():
+            s.advance(k * 0.01)
+    moved = q0 - world.q[coxa.index]
+    if holds:
+        assert 0.0 < moved < math.radians(12)  # the error that drives the motor to full duty
+    else:
+        assert moved > 0.5  # running away
 
 
 def test_present_current_is_the_motor_torque_over_kt() -> None:

@@ -7,9 +7,15 @@ on the motor, and the motor gives
 
     τ = kt·V/R − kt²·ω/R        (back-EMF through the winding resistance)
 
-at the output shaft (kt in N·m/A at the output, ω the joint's speed), less friction
-(Coulomb and viscous, model "m1"), with the rotor's reflected inertia as armature.
-Present Current is τ / kt: the motor current.
+at the output shaft (kt in N·m/A at the output, ω the joint's speed), less the gearbox's
+friction, with the rotor's reflected inertia as armature. Present Current is τ / kt: the
+motor current.
+
+The friction is BAM's model m6 by default (:class:`GearFriction`): on top of Coulomb and
+viscous friction, a budget that grows with the torque the gears carry, more when the load
+drives the motor than when the motor drives the load, and more at rest (Stribeck). An MX
+servo's gears so hold a load well beyond the torque its motor makes, which m1 (Coulomb
+and viscous only) leaves out. docs/sim.md, "Motors", weighs the two.
 """
 
 from __future__ import annotations
@@ -19,6 +25,35 @@ from dataclasses import dataclass, replace
 from typing import Final, Literal
 
 from whexar.bus.control_table import TICKS_PER_REV
+
+
+@dataclass(frozen=True)
+class GearFriction:
+    """BAM's friction budget of model m6 beyond Coulomb and viscous (bam/model.py,
+    ``compute_frictions``; docs/theory/models.rst). With τm the motor's torque and τe the
+    external torque on the joint, the joint does not move while the net torque is within
+
+        τf = Kc + Kv·|ω| + |Ke·τe − Km·τm|
+             + s(ω)·(Kcs + |Kes·τe − Kms·τm| + Q),   s(ω) = exp(−|ω/ωs|^α),
+
+    Q = Keq·τe² when |τm| > |τe|, else Kmq·τm², and only when τe opposes τm. Kc and Kv
+    are the motor's ``coulomb`` and ``viscous``; the rest is here, named as in BAM's
+    parameter files."""
+
+    friction_stribeck: float
+    """Kcs, N·m: the extra Coulomb friction at rest."""
+    load_friction_motor: float
+    """Km: friction per N·m of the motor's torque."""
+    load_friction_external: float
+    """Ke: friction per N·m of the external torque."""
+    load_friction_motor_stribeck: float
+    load_friction_external_stribeck: float
+    load_friction_motor_quad: float
+    """Kmq, 1/(N·m)."""
+    load_friction_external_quad: float
+    dtheta_stribeck: float
+    """ωs, rad/s: the speed over which the Stribeck terms fade."""
+    alpha: float
 
 
 @dataclass(frozen=True)
@@ -36,17 +71,31 @@ class MotorModel:
     viscous: float
     """Viscous friction, N·m·s/rad."""
     source: str
+    gear: GearFriction | None = None
+    """The gears' load-dependent friction (model m6); ``None``: Coulomb and viscous only."""
 
     def stall_torque(self, volts: float) -> float:
-        """τ at ω = 0 and full voltage: kt·V/R."""
+        """The motor's τ at ω = 0 and full voltage: kt·V/R."""
         return self.kt * volts / self.resistance
 
+    def lifted_torque(self, volts: float) -> float:
+        """The largest load the servo lifts at full voltage, just moving: its datasheet's
+        stall torque. The motor's kt·V/R less what the gears take, (1 − Km)·kt·V/R − Kc,
+        against the load and its own share (1 + Ke); m1 has no such share."""
+        if self.gear is None:
+            return self.stall_torque(volts)
+        g = self.gear
+        driven = self.stall_torque(volts) * (1 - g.load_friction_motor) - self.coulomb
+        return driven / (1 + g.load_friction_external)
+
     def no_load_speed(self, volts: float) -> float:
-        """ω where the motor's torque falls to its Coulomb friction, rad/s."""
-        return (volts - self.coulomb * self.resistance / self.kt) / self.kt
+        """ω where the motor's torque falls to its friction unloaded (viscous left out),
+        rad/s: (V − Kc·R/(kt·(1 − Km)))/kt."""
+        share = 1 - self.gear.load_friction_motor if self.gear else 1.0
+        return (volts - self.coulomb * self.resistance / (self.kt * share)) / self.kt
 
 
-MOTORS: Final[dict[str, MotorModel]] = {
+M1_MOTORS: Final[dict[str, MotorModel]] = {
     # BAM, bam/params/mx64/m1.json and mx106/m1.json (model m1: Coulomb + viscous).
     "MX-64": MotorModel(
         kt=1.6224667906987444,
@@ -63,6 +112,50 @@ MOTORS: Final[dict[str, MotorModel]] = {
         coulomb=0.10352026623606064,
         viscous=0.03520238029013507,
         source="BAM (ICRA 2025), bam/params/mx106/m1.json",
+    ),
+}
+"""BAM's model m1 of each servo model: Coulomb and viscous friction only."""
+
+MOTORS: Final[dict[str, MotorModel]] = {
+    # BAM, bam/params/mx64/m6.json and mx106/m6.json (model m6: Stribeck, load-dependent,
+    # directional, quadratic), identified on the same bench as m1.
+    "MX-64": MotorModel(
+        kt=1.6016832750318712,
+        resistance=2.3164043271967447,
+        armature=0.012265893049213158,
+        coulomb=6.217919698787649e-07,
+        viscous=0.02533701181690149,
+        source="BAM (ICRA 2025), bam/params/mx64/m6.json",
+        gear=GearFriction(
+            friction_stribeck=0.12269525980968875,
+            load_friction_motor=0.3114720375111298,
+            load_friction_external=2.0462014258729542e-08,
+            load_friction_motor_stribeck=0.18774381222411038,
+            load_friction_external_stribeck=0.014065853481003015,
+            load_friction_motor_quad=0.006908512882777861,
+            load_friction_external_quad=0.009999980627672081,
+            dtheta_stribeck=2.575277366960116,
+            alpha=0.8409018066017007,
+        ),
+    ),
+    "MX-106": MotorModel(
+        kt=2.209828156174588,
+        resistance=2.033661749312417,
+        armature=0.026016184370993383,
+        coulomb=1.0232526438525893e-05,
+        viscous=0.05071566473605552,
+        source="BAM (ICRA 2025), bam/params/mx106/m6.json",
+        gear=GearFriction(
+            friction_stribeck=0.12195409579603411,
+            load_friction_motor=0.19800553725822115,
+            load_friction_external=0.022215529897348624,
+            load_friction_motor_stribeck=0.19859970173941574,
+            load_friction_external_stribeck=0.08710328264676681,
+            load_friction_motor_quad=0.009999930103371748,
+            load_friction_external_quad=7.326919843140997e-05,
+            dtheta_stribeck=1.7463251741328727,
+            alpha=1.142827788004191,
+        ),
     ),
 }
 """The motor of each servo model the configuration may name (:data:`DEFAULT_MOTORS`)."""
@@ -104,16 +197,18 @@ def from_datasheet(sheet: Datasheet, friction_of: MotorModel, source: str) -> Mo
 # BAM did not identify the MX-28: its line is its datasheet's (stall 2.5 N·m, 55 rpm at
 # 12 V). Armature and friction are the MX-64's scaled by stall torque (2.5/6.0): an
 # estimate, not a measurement.
-MOTORS["MX-28"] = from_datasheet(
+# m1's line with m1's friction: a line through the datasheet's two points has no room for
+# load-dependent friction, which would take its share of the stall torque.
+M1_MOTORS["MX-28"] = MOTORS["MX-28"] = from_datasheet(
     DATASHEETS["MX-28"],
     replace(
-        MOTORS["MX-64"],
-        armature=MOTORS["MX-64"].armature * 2.5 / 6.0,
-        coulomb=MOTORS["MX-64"].coulomb * 2.5 / 6.0,
-        viscous=MOTORS["MX-64"].viscous * 2.5 / 6.0,
+        M1_MOTORS["MX-64"],
+        armature=M1_MOTORS["MX-64"].armature * 2.5 / 6.0,
+        coulomb=M1_MOTORS["MX-64"].coulomb * 2.5 / 6.0,
+        viscous=M1_MOTORS["MX-64"].viscous * 2.5 / 6.0,
     ),
     "MX-28 datasheet (2.5 N·m stall, 55 rpm at 12 V); armature and friction scaled "
-    "from BAM's MX-64 by stall torque (estimate)",
+    "from BAM's MX-64 (m1) by stall torque (estimate)",
 )
 
 DATASHEET_MOTORS: Final[dict[str, MotorModel]] = {
@@ -122,19 +217,22 @@ DATASHEET_MOTORS: Final[dict[str, MotorModel]] = {
         motor,
         f"{name} datasheet line at 12 V; armature and friction: {motor.source}",
     )
-    for name, motor in MOTORS.items()
+    for name, motor in M1_MOTORS.items()
 }
-"""Every motor on its datasheet's line at 12 V, with BAM's friction and armature."""
+"""Every motor on its datasheet's line at 12 V, with BAM's m1 friction and armature."""
 
-MotorSource = Literal["bam", "datasheet"]
-"""Which motors a run uses: BAM's identification (the MX-28 from its datasheet), or every
-model on its datasheet's line (docs/sim.md weighs the two)."""
+MotorSource = Literal["bam", "bam-m1", "datasheet"]
+"""Which motors a run uses: BAM's identification with its gearbox friction (model m6; the
+MX-28, which BAM did not identify, from its datasheet), BAM's m1 (Coulomb and viscous
+friction only), or every model on its datasheet's line with m1's friction (docs/sim.md
+weighs them)."""
 DEFAULT_MOTORS: Final[MotorSource] = "bam"
 
 
 def motors(source: MotorSource = DEFAULT_MOTORS) -> dict[str, MotorModel]:
     """The motor of each servo model for ``source``."""
-    return dict(MOTORS if source == "bam" else DATASHEET_MOTORS)
+    table = {"bam": MOTORS, "bam-m1": M1_MOTORS, "datasheet": DATASHEET_MOTORS}[source]
+    return dict(table)
 
 
 MAX_DUTY: Final = 0.9625
@@ -163,10 +261,12 @@ __all__ = [
     "DATASHEET_MOTORS",
     "DEFAULT_MOTORS",
     "KPP_DIVISOR",
+    "M1_MOTORS",
     "MAX_DUTY",
     "MOTORS",
     "PWM_LIMIT",
     "Datasheet",
+    "GearFriction",
     "MotorModel",
     "MotorSource",
     "from_datasheet",

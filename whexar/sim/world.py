@@ -26,7 +26,9 @@ motor make of its control table (:mod:`whexar.sim.motors`):
   clipped to ±96 %; velocity mode (the wheels): PI on the velocity error with
   Velocity P and I Gains (78, 76);
 * the H-bridge puts duty × supply voltage on the motor, whose torque is
-  τ = kt·V/R − kt²·ω/R (BAM); friction and armature are the joint's own;
+  τ = kt·V/R − kt²·ω/R (BAM); armature and Coulomb and viscous friction are the
+  joint's own, and every step the joint's friction budget grows with the torques
+  the gears carry (BAM's model m6, :class:`~whexar.sim.motors.GearFriction`);
 * torque off: no voltage and an open bridge: the joint coasts.
 
 Present Position and Velocity are the joint's; Present Current is τ / kt (the
@@ -78,6 +80,8 @@ from whexar.sim.motors import (
     MAX_DUTY,
     PWM_LIMIT,
     TICKS_PER_RAD,
+    GearFriction,
+    MotorModel,
     MotorSource,
     motors,
     position_duty_per_rad,
@@ -108,6 +112,33 @@ KVI_DIVISOR: Final = 65536
 """Velocity P Gain (78) / 128 and Velocity I Gain (76) / 65536 (e-manual, MX (2.0))."""
 CONTROL_PERIOD_S: Final = 0.001
 """The firmware's control period over which the velocity error is integrated (1 kHz)."""
+_FRICTION_DOF: Final = int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
+
+
+class _GearTerms:
+    """Every joint's :class:`~whexar.sim.motors.GearFriction` as arrays (zeros where a
+    motor has none), for :meth:`SimWorld._gear_friction`."""
+
+    def __init__(self, table: Sequence[MotorModel]) -> None:
+        def column(name: str, none: float = 0.0) -> np.ndarray:
+            return np.array([getattr(m.gear, name) if m.gear else none for m in table])
+
+        names = GearFriction.__dataclass_fields__
+        self.has = np.array([m.gear is not None for m in table])
+        self.coulomb = np.array([m.coulomb for m in table])
+        for name in names:
+            setattr(self, name, column(name, 1.0 if name in ("dtheta_stribeck", "alpha") else 0.0))
+        self.inv_speed = 1.0 / column("dtheta_stribeck", 1.0)
+
+    friction_stribeck: np.ndarray
+    load_friction_motor: np.ndarray
+    load_friction_external: np.ndarray
+    load_friction_motor_stribeck: np.ndarray
+    load_friction_external_stribeck: np.ndarray
+    load_friction_motor_quad: np.ndarray
+    load_friction_external_quad: np.ndarray
+    dtheta_stribeck: np.ndarray
+    alpha: np.ndarray
 
 
 def fsr_counts(force_n: float) -> int:
@@ -234,6 +265,7 @@ class SimWorld:
         self._imu_t = 0.0
         self.joints: list[_Joint] = []
         self.by_servo: dict[int, _Joint] = {}
+        chosen: list[MotorModel] = []
         for leg, spec in enumerate(self.cfg.legs):
             for j, sid in enumerate(spec.servo_ids):
                 name = f"{LEG_NAMES[leg]}_{JOINT_NAMES[j]}"
@@ -258,7 +290,17 @@ class SimWorld:
                 self.joints.append(joint)
                 self.by_servo[sid] = joint
                 servo.dynamics = _JointDynamics(self, joint)
+                chosen.append(motor)
         n = len(self.joints)
+        # The motors' friction and armature are the run's motors' (the model's are BAM's).
+        dofs = [j.dadr for j in self.joints]
+        model.dof_armature[dofs] = [m.armature for m in chosen]
+        model.dof_damping[dofs] = [m.viscous for m in chosen]
+        model.dof_frictionloss[dofs] = [m.coulomb for m in chosen]
+        mujoco.mj_setConst(model, self.data)
+        self._gear = _GearTerms(chosen) if any(m.gear for m in chosen) else None
+        self._dofs = np.array(dofs)
+        self._own_friction = np.zeros(model.nv)
         self._servos = [j.servo for j in self.joints]
         self._others = [s for s in chain.servos.values() if s not in self._servos]
         """Servos on the chain that drive no joint of the world: their own dynamics."""
@@ -419,7 +461,9 @@ class SimWorld:
         start, w0 = self.time, d.qvel[dadr].copy()  # a view when dadr is a slice
         bridge_c = 0.0
         while self.time + h <= t + 1e-12:
-            d.ctrl[act] = self._control(d.qpos[qadr], d.qvel[dadr])
+            d.ctrl[act] = tau = self._control(d.qpos[qadr], d.qvel[dadr])
+            if self._gear is not None:
+                self._gear_friction(tau)
             # The bridges' net draw of this step; a net surplus is lost (power module).
             bridge_c += max(0.0, self._bridge_a) * h
             mujoco.mj_step(m, d)
@@ -433,6 +477,34 @@ class SimWorld:
         self._read_joints(d.qpos[qadr], w1, (w1 - w0) / (self.time - start))
         if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
             self._sense()
+
+    def _gear_friction(self, tau: np.ndarray) -> None:
+        """Each joint's friction budget for the coming step (BAM's m6, as its MuJoCo
+        controller sets it: bam/mujoco.py), from the motor's torque ``tau`` and the
+        external torque on the joint at the last step: gravity, inertia and the
+        constraints (contacts, limits), less the joint's own friction."""
+        d, g, dofs = self.data, self._gear, self._dofs
+        assert g is not None
+        ne = d.nefc
+        own = self._own_friction
+        own[:] = 0.0
+        if ne:
+            rows = d.efc_type[:ne] == _FRICTION_DOF
+            np.add.at(own, d.efc_id[:ne][rows], d.efc_force[:ne][rows])
+        ext = d.qfrc_constraint[dofs] - d.qfrc_bias[dofs] - own[dofs]
+        w = d.qvel[dofs]
+        load = np.abs(ext * g.load_friction_external - tau * g.load_friction_motor)
+        load_rest = np.abs(
+            ext * g.load_friction_external_stribeck - tau * g.load_friction_motor_stribeck
+        )
+        rest = np.exp(-(np.abs(w * g.inv_speed) ** g.alpha))
+        quad = np.where(
+            np.abs(ext) < np.abs(tau),
+            g.load_friction_external_quad * ext * ext,
+            g.load_friction_motor_quad * tau * tau,
+        ) * (np.sign(ext) != np.sign(tau))
+        budget = g.coulomb + load + rest * (g.friction_stribeck + load_rest + quad)
+        self.model.dof_frictionloss[dofs] = np.where(g.has, budget, g.coulomb)
 
     def _grip(self) -> None:
         """A rolling wheel grips less than a still one (:data:`~whexar.sim.terrain.
