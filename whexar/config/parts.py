@@ -44,6 +44,14 @@ class BodySpec(Section):
     length_mm: Positive = 600.0
     width_mm: Positive = 100.0
     height_mm: Positive = 60.0
+    cog_mm: tuple[Finite, Finite, Finite] = (0.0, 0.0, -43.0)
+    """The whole robot's centre of gravity in the body frame (x forward, y left, z up from
+    the coxa joints' plane), walking in the default stance: the stability margin projects
+    it along gravity (3.2.2). Six legs of 1.02 kg hang below the body, so it sits 43 mm
+    below the coxa joints over a tripod cycle (52 mm standing, the swing legs raised
+    lift it): the mass model's figure, the simulation's model of these masses
+    (``tests/sim/test_model.py`` keeps the two equal). The thesis gives none; on the
+    robot, balance it on a knife edge."""
 
 
 # --------------------------------------------------------------------------- servos & joints

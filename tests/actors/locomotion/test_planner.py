@@ -272,8 +272,10 @@ def _tilted(planner: LocomotionPlanner, pitch: float) -> None:
 
 
 def test_on_a_slope_the_margin_projects_the_cog_along_gravity() -> None:
-    # Nose up on 23° without the trochanter: the CoG falls 0.29 m · tan 23° = 123 mm
-    # behind the body centre, and a tripod's margin is the slopes note's 158 − 233·tan θ.
+    # Nose up on 23° without the trochanter: the robot's CoG, 43 mm below the coxa joints
+    # (body.cog_mm), 0.247 m above the feet, falls 0.247 m · tan 23° = 105 mm behind the
+    # point below it, and a tripod's margin is 158 − 0.80·247·tan θ mm (the slopes note's
+    # 158 − 233·tan θ for a CoG at the body centre).
     planner, legs = standing()
     planner.loco = planner.loco.model_copy(update={"trochanter_follows_pitch": False})
     flat = planner.margin([0, 3, 4])
@@ -281,6 +283,11 @@ def test_on_a_slope_the_margin_projects_the_cog_along_gravity() -> None:
     _tilted(planner, math.radians(-23.0))
     drive(planner, legs, 3.0, 3.05)
     assert planner.trochanter_rad == 0.0
+    assert planner.margin([0, 3, 4]) == pytest.approx(
+        0.158 - 0.80 * 0.247 * math.tan(math.radians(23)), abs=0.003
+    )
+    # A CoG at the body centre (as the slopes note had it) leaves less.
+    planner.cog = (0.0, 0.0, 0.0)
     assert planner.margin([0, 3, 4]) == pytest.approx(
         0.158 - 0.233 * math.tan(math.radians(23)), abs=0.003
     )
@@ -292,8 +299,8 @@ def test_the_trochanter_arc_brings_the_feet_back_under_the_cog() -> None:
     _tilted(planner, math.radians(-23.0))
     drive(planner, legs, 3.0, 3.05)
     assert planner.trochanter_rad == pytest.approx(math.radians(-23.0))
-    without = 0.158 - 0.233 * math.tan(math.radians(23))
-    assert planner.margin([0, 3, 4]) > without + 0.08
+    without = 0.158 - 0.80 * 0.247 * math.tan(math.radians(23))
+    assert planner.margin([0, 3, 4]) > without + 0.06
 
 
 def test_the_trochanter_follows_the_pitch_up_to_its_configured_limit() -> None:

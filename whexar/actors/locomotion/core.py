@@ -103,6 +103,12 @@ class PlannerCore:
         """The trochanter angle last said (eq. 4.18): it carries the feet on their arcs."""
         self.ground_tilt = (0.0, 0.0)
         """(roll, pitch) of the ground under the feet as gravity sees it (rad)."""
+        self.cog: tuple[float, float, float] = (
+            cfg.body.cog_mm[0] / 1000,
+            cfg.body.cog_mm[1] / 1000,
+            cfg.body.cog_mm[2] / 1000,
+        )
+        """The robot's centre of gravity in the body frame, m (``body.cog_mm``)."""
         self.frames = [LegFrame(self.geometry, i) for i in range(N_LEGS)]
         """The legs' frames under the body pose: where the arcs are drawn."""
         self.pending_moves: list[tuple[int, Vec3, float]] = []
@@ -193,9 +199,10 @@ class PlannerCore:
         placed counts at its neutral point.
 
         The feet are where the trochanter carries them (:func:`trochanter_arc`, as the
-        legs place them), and the CoG, at the body centre, is projected along gravity
-        onto their plane (:func:`gravity_cog`): on a slope the point the supports must
-        enclose lies downhill of the one straight below the body."""
+        legs place them), and the robot's CoG (``body.cog_mm``: below the body centre,
+        the legs hang under it) is projected along gravity onto their plane
+        (:func:`gravity_cog`): on a slope the point the supports must enclose lies
+        downhill of the one straight below the body."""
         feet, neutral = self.feet, self.neutral_points
         points: list[tuple[float, float]] = []
         ground = 0.0
@@ -205,9 +212,10 @@ class PlannerCore:
             ground += z
         pose = self.pose_now
         roll, pitch = self.ground_tilt
-        cog = (pose[0], pose[1])
+        cx, cy, cz = self.cog
+        cog = (pose[0] + cx, pose[1] + cy)
         if points and (roll != 0.0 or pitch != 0.0):
-            cog = gravity_cog(cog, pose[2] - ground / len(points), roll, pitch)
+            cog = gravity_cog(cog, pose[2] + cz - ground / len(points), roll, pitch)
         return support_margin(points, cog)
 
     def away(self, leg: int, target: Vec3) -> bool:
