@@ -15,6 +15,8 @@ pass, only what the summary, the report and the campaign metrics read:
 * leg 0's goal and present angles of the plotted joints (:data:`TRACED_JOINTS`);
 * per bus cycle the Σ |Present Current| of each leg, and each servo's |Present
   Current| (NaN where it was not read), as flat float arrays;
+* per force-sensor reading (:class:`~whexar.actors.messages.LegLoads`) the six
+  legs' contact flags, one byte;
 * every runtime event (they are few), and the latest activity and event for the
   progress line.
 
@@ -33,7 +35,7 @@ from typing import Any, Final, NoReturn
 
 import numpy as np
 
-from whexar.actors.messages import JointGoals, LegState, LocomotionState, ServoStates
+from whexar.actors.messages import JointGoals, LegLoads, LegState, LocomotionState, ServoStates
 from whexar.errors import UsageError
 from whexar.robot import LEG_NAMES, N_LEGS
 from whexar.runtime.harness import MessageLog
@@ -129,6 +131,9 @@ class RunSeries:
     """:class:`ServoStates` seen: the bus cycles."""
     cycle_t: array[float] = field(default_factory=lambda: array("d"))
     """Each bus cycle's time (s)."""
+    loads_t: array[float] = field(default_factory=lambda: array("d"))
+    """Each force-sensor reading's time (s)."""
+    _contacts: array[int] = field(default_factory=lambda: array("B"))
     _leg_amps: array[float] = field(default_factory=lambda: array("d"))
     _servo_amps: dict[int, array[float]] = field(default_factory=dict)
     _servo_joint: dict[int, int] = field(default_factory=dict)
@@ -161,6 +166,9 @@ class RunSeries:
             self._leg_state(msg)
         elif isinstance(msg, JointGoals):
             self._joint_goals(msg)
+        elif isinstance(msg, LegLoads):
+            self.loads_t.append(msg.t)
+            self._contacts.append(sum(1 << leg for leg, c in enumerate(msg.contacts) if c))
         elif isinstance(msg, LocomotionState):
             self.locomotion.add(msg)
             self.latest_activity = f"{msg.activity} {msg.mode}/{msg.gait}"
@@ -246,6 +254,12 @@ class RunSeries:
         """Bus cycle times and, per cycle and leg, Σ |Present Current| of the leg's servos (A)."""
         amps = np.frombuffer(self._leg_amps, dtype=float).reshape(-1, N_LEGS).copy()
         return list(self.cycle_t), amps
+
+    def contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """Force-sensor reading times and, per reading and leg, its contact flag."""
+        bits = np.frombuffer(self._contacts, dtype=np.uint8)
+        flags = (bits[:, None] >> np.arange(N_LEGS, dtype=np.uint8)) & 1
+        return np.frombuffer(self.loads_t, dtype=float).copy(), flags.astype(bool)
 
     def servo_amps(self) -> dict[int, tuple[int, array[float]]]:
         """By servo ID: (joint, |Present Current| per bus cycle, NaN where not read)."""

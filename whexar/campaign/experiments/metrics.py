@@ -313,6 +313,11 @@ TILT_PROGRESS_FRACTION: Final = 0.25
 board (the rules' ``min_progress_fraction``)."""
 TILT_TURN_DEG: Final = 30.0
 """… or turned further than this from its heading (the rules' ``max_heading_change_deg``)."""
+TILT_SUPPORT_FRACTION: Final = 0.5
+"""A stance failed when a leg's force sensor read no contact for more than this share of a
+span: a foot left the board, and the robot no longer stood on its six supports (6.8.1:
+"no longer able to stand stably"; 4.2.3 counts disappeared supports). Over half a span,
+so that a foot's flicker is not a lost support."""
 STILL_MPS: Final = 0.01
 """Slower than this on the level board: the run is a stance."""
 
@@ -321,8 +326,8 @@ STILL_MPS: Final = 0.01
     "tilt_limit_deg",
     "°",
     "the tilting board (6.7.6): the board's angle at the start of the first 2 s span in "
-    "which the robot fell, turned > 30°, slid > 2 cm down or across the board (standing) or "
-    "climbed at < 25 % of its "
+    "which the robot fell, turned > 30°, slid > 2 cm down or across the board or lifted a "
+    "foot off it for most of the span (standing) or climbed at < 25 % of its "
     "speed on the level board (moving); when it never failed, the board's last angle",
 )
 def tilt_limit_deg(result: SimResult, window: Window) -> Value:
@@ -335,6 +340,7 @@ def tilt_limit_deg(result: SimResult, window: Window) -> Value:
     speed = _along_plane(level[0], level[-1]) / max(level[-1].t - level[0].t, 1e-9)
     moving = speed >= STILL_MPS
     yaw = _unwrapped_yaw(s)
+    loads_t, contacts = result.series.contacts()
     start = 0
     for k, b in enumerate(s):
         if b.t < tilt.start_s + TILT_SPAN_S:
@@ -348,6 +354,10 @@ def tilt_limit_deg(result: SimResult, window: Window) -> Value:
             # Down the board (it rises along +x) or sideways: as the trochanters turn with
             # the board, their arcs carry the body uphill over its feet, which is no slide.
             failed = max(a.x - b.x, abs(b.y - a.y)) > TILT_SLIDE_M
+            inside = (loads_t > a.t) & (loads_t <= b.t)
+            if inside.any():  # a foot off the board for most of the span
+                off = 1.0 - contacts[inside].mean(axis=0)
+                failed = failed or bool((off > TILT_SUPPORT_FRACTION).any())
         failed = (
             failed or b.tilt > FALLEN_TILT_RAD or math.degrees(abs(yaw[k] - yaw[0])) > TILT_TURN_DEG
         )
