@@ -55,7 +55,7 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from operator import is_not
 from typing import Final
 
@@ -120,15 +120,14 @@ class _GearTerms:
     motor has none), for :meth:`SimWorld._gear_friction`."""
 
     def __init__(self, table: Sequence[MotorModel]) -> None:
-        def column(name: str, none: float = 0.0) -> np.ndarray:
-            return np.array([getattr(m.gear, name) if m.gear else none for m in table])
-
-        names = GearFriction.__dataclass_fields__
+        # A joint without gear terms gets zeros, and a harmless speed and exponent of 1.
+        for f in fields(GearFriction):
+            none = 1.0 if f.name in ("dtheta_stribeck", "alpha") else 0.0
+            column = [getattr(m.gear, f.name) if m.gear else none for m in table]
+            setattr(self, f.name, np.array(column))
         self.has = np.array([m.gear is not None for m in table])
         self.coulomb = np.array([m.coulomb for m in table])
-        for name in names:
-            setattr(self, name, column(name, 1.0 if name in ("dtheta_stribeck", "alpha") else 0.0))
-        self.inv_speed = 1.0 / column("dtheta_stribeck", 1.0)
+        self.inv_speed = 1.0 / self.dtheta_stribeck
 
     friction_stribeck: np.ndarray
     load_friction_motor: np.ndarray
@@ -292,7 +291,7 @@ class SimWorld:
                 servo.dynamics = _JointDynamics(self, joint)
                 chosen.append(motor)
         n = len(self.joints)
-        # The motors' friction and armature are the run's motors' (the model's are BAM's).
+        # Friction and armature are the run's motors' (the model file has BAM's m6).
         dofs = [j.dadr for j in self.joints]
         model.dof_armature[dofs] = [m.armature for m in chosen]
         model.dof_damping[dofs] = [m.viscous for m in chosen]
