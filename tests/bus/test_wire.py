@@ -300,6 +300,22 @@ def test_every_fault_plan_runs_the_same_on_both_paths(plan: Path | str, tmp_path
     assert native_messages == sdk_messages
 
 
+def _drain(port: Any, quiet_s: float = 0.1, limit_s: float = 2.0) -> None:
+    """Read (through the tap) whatever the emulator still sends, until ``quiet_s`` pass
+    without a byte."""
+    end = last = monotonic()
+    end += limit_s
+    while monotonic() < end:
+        waiting = port.getBytesAvailable()
+        if waiting:
+            port.readPort(waiting)
+            last = monotonic()
+        elif monotonic() - last > quiet_s:
+            return
+        else:
+            time.sleep(0.002)
+
+
 def _pty_reads(native: bool, faults: FaultState | None = None, cycles: int = 30) -> list[Any]:
     """Sync Reads of 42 servos over a pty to the emulator in real time, each with goals
     riding on it; what each returned, and every byte the link tap saw."""
@@ -320,8 +336,10 @@ def _pty_reads(native: bool, faults: FaultState | None = None, cycles: int = 30)
                 out.append((res.result, res.failed, sorted(res.data), res.sent))
                 if not res.ok:
                     # The rest of a failed read is still on its way: where it falls in the
-                    # next read is a race, which each path may win (a real bus too).
-                    time.sleep(0.03)
+                    # next read is a race, which each path may win (a real bus too). Read
+                    # it off until the line is quiet, so that both paths see all of it
+                    # however busy the machine (a fixed pause lost it to a busy CPU).
+                    _drain(port)
         finally:
             port.closePort()
     return [out, tapped]
