@@ -168,6 +168,22 @@ def test_figures_come_from_the_rows_with_thesis_values_beside() -> None:
     assert len({f.name for f in found}) == len(found)
 
 
+def test_a_board_that_never_failed_says_its_limit_lies_above() -> None:
+    # The board at 7 + 22 s × 1.5°/s = 33° when the window ends at 29 s: a failure is dated
+    # by its 2 s span's start, so 30° is the latest one it can see.
+    def board(limit: float) -> list[Row]:
+        metrics = {"tilt_limit_deg": limit}
+        end = {"measure.to_s": 29.0}
+        return [_row("tilt-walk", metrics, trochanter=True, tilt=BOARD, **end)]
+
+    def note(limit: float) -> str:
+        return _by_name(figures(board(limit)))["steepest slope walked, with trochanter"].note
+
+    assert "held to the board's last angle (33°)" in note(33.0)
+    assert "held to the board's last angle" in note(31.0)
+    assert "held" not in note(30.0)
+
+
 @pytest.mark.slow
 def test_failed_runs_are_reported_not_hidden(tmp_path: Path) -> None:
     failed = Row("0001", "spin", {"label": "spin"}, {}, None, "failed", "timed out after 300 s")

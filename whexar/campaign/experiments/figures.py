@@ -39,8 +39,10 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Final, TypeAlias
 
 from whexar.actors.locomotion.intent import POSE_LIMIT_RAD
+from whexar.campaign.experiments.metrics import TILT_SPAN_S
 from whexar.campaign.experiments.reference import Reference, Rules, Single, Why, reference
 from whexar.config.motion import LocomotionSpec
+from whexar.sim.tilt import BoardTilt
 
 if TYPE_CHECKING:
     from whexar.campaign.rows import Row
@@ -405,6 +407,24 @@ def tilted(rows: Iterable[Row], label: str, trochanter: bool) -> list[float] | N
     return [v for v in found if v is not None]
 
 
+def held_to_the_end(rows: Iterable[Row], label: str, trochanter: bool) -> float | None:
+    """The board's last measured angle (°) when a tilting-board run of ``label`` never
+    failed (its ``tilt_limit_deg`` is that angle, so the limit lies above), else ``None``."""
+    for r in rows:
+        tilt, to_s = r.variation.get("tilt"), r.variation.get("measure.to_s")
+        limit = number(r, "tilt_limit_deg")
+        if r.label != label or trochanter_of(r) != trochanter or limit is None:
+            continue
+        if not isinstance(tilt, Mapping) or not isinstance(to_s, int | float):
+            continue
+        board = BoardTilt(**{k: float(tilt[k]) for k in ("start_s", "rate_deg_s", "max_deg")})
+        # A failure is dated by the start of its span, at most the window's end less a
+        # span: a later angle is the one the metric gives when nothing failed.
+        if limit > board.angle_deg(float(to_s) - TILT_SPAN_S) + 1e-6:
+            return board.angle_deg(float(to_s))
+    return None
+
+
 def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
     """6.7.6, 6.8.1: the steepest slopes, from the tilting board (or a sweep)."""
     spec, out = ref.steepest, []
@@ -417,6 +437,12 @@ def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
             found = statistics.median(board) if board else None
             if len(board) > 1:
                 note = f"Median of {len(board)} runs: {min(board):.3g}–{max(board):.3g}°."
+            last = held_to_the_end(rows, s.label, s.trochanter)
+            if last is not None:
+                note = (
+                    f"A run held to the board's last angle ({last:.3g}°): the limit lies "
+                    "above it; the run should be longer."
+                )
         else:
             tested = sorted(
                 {
@@ -432,7 +458,7 @@ def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
                 note = f"The lowest slope tested ({tested[0]:g}°) already failed."
         with_ = "with" if s.trochanter else "without"
         name = f"steepest slope {VERBS[s.mode]}, {with_} trochanter"
-        why = ref.explain(spec.why)
+        why = ref.explain(s.why or spec.why)
         out.append(
             _figure(
                 name,

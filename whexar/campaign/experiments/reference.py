@@ -240,6 +240,8 @@ class SteepestSlope(Section):
     """The next inclination of Table 6.6 (0, 14, 23, 32, 40, 50°) that the thesis's robot
     did not manage, ``None`` when it managed the steepest tested: the thesis's limit lies
     from ``thesis_deg`` up to this."""
+    why: str | None = None
+    """The explanation of [why] for this slope; ``None``: the section's."""
 
 
 class Steepest(Section):
@@ -310,6 +312,7 @@ class Reference(CheckedSection):
                 allowed = "a mode and trochanter no other slope has"
                 found.append(Problem(f"steepest.slopes[{i}].mode", pair[0], allowed))
         for i, slope in enumerate(self.steepest.slopes):
+            why(f"steepest.slopes[{i}].why", slope.why)
             if slope.failed_deg is not None and slope.failed_deg <= slope.thesis_deg:
                 above = f"above thesis_deg ({slope.thesis_deg:g})"
                 found.append(Problem(f"steepest.slopes[{i}].failed_deg", slope.failed_deg, above))
