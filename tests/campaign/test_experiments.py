@@ -182,6 +182,18 @@ def test_a_board_that_never_failed_says_its_limit_lies_above() -> None:
     assert "held to the board's last angle (33°)" in note(33.0)
     assert "held to the board's last angle" in note(31.0)
     assert "held" not in note(30.0)
+    # A board at its top (55°) for the whole last span: nothing steeper was tried.
+    top = [
+        _row(
+            "tilt-stand",
+            {"tilt_limit_deg": 55.0},
+            trochanter=True,
+            tilt=BOARD,
+            **{"measure.to_s": 59.5},
+        )
+    ]
+    stood = _by_name(figures(top))["steepest slope stood on, with trochanter"]
+    assert "held to the board's last angle (55°)" in stood.note
 
 
 @pytest.mark.slow

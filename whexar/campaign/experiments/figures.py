@@ -419,8 +419,10 @@ def held_to_the_end(rows: Iterable[Row], label: str, trochanter: bool) -> float 
             continue
         board = BoardTilt(**{k: float(tilt[k]) for k in ("start_s", "rate_deg_s", "max_deg")})
         # A failure is dated by the start of its span, at most the window's end less a
-        # span: a later angle is the one the metric gives when nothing failed.
-        if limit > board.angle_deg(float(to_s) - TILT_SPAN_S) + 1e-6:
+        # span: a later angle is the one the metric gives when nothing failed. A board
+        # held at its top is never steeper: there any limit means "at least the top".
+        latest = board.angle_deg(float(to_s) - TILT_SPAN_S)
+        if limit > latest + 1e-6 or limit >= board.max_deg - 1e-6:
             return board.angle_deg(float(to_s))
     return None
 
@@ -441,7 +443,7 @@ def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
             if last is not None:
                 note = (
                     f"A run held to the board's last angle ({last:.3g}°): the limit lies "
-                    "above it; the run should be longer."
+                    "at or above it; the run should be longer or the board steeper."
                 )
         else:
             tested = sorted(
