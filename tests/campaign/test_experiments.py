@@ -14,6 +14,7 @@ from whexar.campaign.experiments import (
     SLOPE_KEY,
     TROCHANTER_KEY,
     Figure,
+    circle_reckoned_return_m,
     circle_return_m,
     figures,
     gait_period_s,
@@ -274,6 +275,35 @@ def test_sample_metrics_on_hand_made_paths() -> None:
         for k in range(320)
     ]
     assert circle_return_m(_fake(_samples(laps)), Window()) == pytest.approx(0.03, abs=1e-3)
+
+
+def test_a_robot_that_reckons_its_laps_stops_where_its_count_ends() -> None:
+    from whexar.actors.messages import LocomotionState
+
+    # A 0.6 m circle, two true laps in 30 s; the coordinator commands 2 % more turning
+    # than the body makes, so it counts two laps at 30 / 1.02 s.
+    radius, rate = 0.6, 4 * math.pi / 30.0
+    path = [
+        (t, radius * math.sin(rate * t), radius * (1 - math.cos(rate * t)), 0.3, rate * t)
+        for t in (k * 0.1 for k in range(320))
+    ]
+    wrapped = [(t, x, y, z, math.remainder(yaw, 2 * math.pi)) for t, x, y, z, yaw in path]
+
+    def state(t: float) -> LocomotionState:
+        return LocomotionState(t=t, source="coordinator", activity="riding", mode="ride",
+                               gait="tripod", stance="normal", twist=(0.12, 0.0, 1.02 * rate),
+                               gait_phase=0.0, swing_legs=(), margin_m=0.1,
+                               upside_down=False)  # fmt: skip
+
+    result = _FakeResult(_samples(wrapped))
+    result.series = RunSeries.of(("locomotion", state(k * 0.01)) for k in range(3200))  # type: ignore[attr-defined]
+    short = 4 * math.pi - 4 * math.pi / 1.02  # the heading still to go
+    expected = 2 * radius * math.sin(short / 2)
+    got = circle_reckoned_return_m(result, Window())  # type: ignore[arg-type]
+    assert got == pytest.approx(expected, rel=0.02)
+    assert circle_return_m(_fake(_samples(wrapped)), Window()) == pytest.approx(0.0, abs=1e-3)
+    # Never reckoned two laps: no figure.
+    assert circle_reckoned_return_m(result, Window(0.0, 20.0)) is None  # type: ignore[arg-type]
 
 
 def test_gait_period_from_the_legs_swings() -> None:

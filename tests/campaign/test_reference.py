@@ -74,8 +74,10 @@ def test_the_shipped_file_loads_with_the_thesis_figures() -> None:
         "riding sideways at -45°: top speed": 0.2,
         "spinning in place: rate": 4.0,
         "circle (2 laps): distance from the start": 0.015,
+        # The thesis does not say how its laps ended: this one is shown, not judged.
+        "circle (2 laps as the robot counts them): distance from the start": None,
     }
-    assert all(isinstance(v, str | float) for v in single.values())
+    assert all(isinstance(v, str | float) for v in single.values() if v is not None)
     # 6.7.6 and 6.8.1: the steepest slopes; 6.8.1: more than 23 % saved at 32°.
     steepest = {(s.mode, s.trochanter): s.thesis_deg for s in ref.steepest.slopes}
     assert steepest == {

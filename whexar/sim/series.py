@@ -77,15 +77,18 @@ class LocomotionPoint:
     mode: str
     gait: str
     margin_m: float
+    yaw_rate_rad_s: float = 0.0
+    """The turning rate it commands (its twist's ω): what the robot reckons it turns."""
 
 
 class LocomotionPoints:
-    """The coordinator's states in order: times and margins as floats, the names interned
-    (a state's strings repeat from cycle to cycle)."""
+    """The coordinator's states in order: times, margins and commanded turning rates as
+    floats, the names interned (a state's strings repeat from cycle to cycle)."""
 
     def __init__(self) -> None:
         self._t = array("d")
         self._margin = array("d")
+        self._yaw_rate = array("d")
         self._names = array("H")  # index into _table of (activity, mode, gait)
         self._table: list[tuple[str, str, str]] = []
         self._index: dict[tuple[str, str, str], int] = {}
@@ -98,6 +101,7 @@ class LocomotionPoints:
             self._table.append(key)
         self._t.append(msg.t)
         self._margin.append(msg.margin_m)
+        self._yaw_rate.append(msg.twist[2])
         self._names.append(k)
 
     def __len__(self) -> int:
@@ -105,7 +109,8 @@ class LocomotionPoints:
 
     def __getitem__(self, k: int) -> LocomotionPoint:
         activity, mode, gait = self._table[self._names[k]]
-        return LocomotionPoint(self._t[k], activity, mode, gait, self._margin[k])
+        t, margin, rate = self._t[k], self._margin[k], self._yaw_rate[k]
+        return LocomotionPoint(t, activity, mode, gait, margin, rate)
 
     def __iter__(self) -> Iterator[LocomotionPoint]:
         for k in range(len(self._t)):

@@ -40,6 +40,7 @@ from whexar.campaign.experiments.figures import (
     steepest,
 )
 from whexar.campaign.experiments.metrics import (
+    circle_reckoned_return_m,
     circle_return_m,
     gait_period_s,
     spin_rpm,
@@ -71,6 +72,7 @@ __all__ = [
     "TROCHANTER_KEY",
     "Figure",
     "Reference",
+    "circle_reckoned_return_m",
     "circle_return_m",
     "commanded_speed",
     "figures",

@@ -27,6 +27,8 @@ and so every run's key); the thesis's figures they are set beside are data
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
@@ -263,6 +265,40 @@ def circle_return_m(result: SimResult, window: Window) -> Value:
     return None
 
 
+@metric(
+    "circle_reckoned_return_m",
+    "m",
+    "distance from the window's first position when the turning the coordinator "
+    "commanded (its yaw rate, integrated) has made two full laps: the laps as the robot "
+    "reckons them (6.5.2: 1.5 cm, however its laps ended)",
+)
+def circle_reckoned_return_m(result: SimResult, window: Window) -> Value:
+    """How far from its starting point the robot is when it reckons :data:`CIRCLE_LAPS`
+    laps done, m: where a robot that stops by its own count stops."""
+    s = window.samples(result)
+    if len(s) < 2:
+        return None
+    points = result.series.locomotion.between(s[0].t, s[-1].t)
+    goal, turned = CIRCLE_LAPS * 2 * math.pi, 0.0
+    for a, b in itertools.pairwise(points):
+        turned += abs(a.yaw_rate_rad_s) * (b.t - a.t)
+        if turned >= goal:
+            x, y = _position_at(s, b.t)
+            return math.hypot(x - s[0].x, y - s[0].y)
+    return None
+
+
+def _position_at(samples: Sequence[Sample], t: float) -> tuple[float, float]:
+    """The body's (x, y) at ``t``, linear between the samples around it."""
+    k = bisect.bisect_left([x.t for x in samples], t)
+    if k <= 0 or k >= len(samples):
+        last = samples[0 if k <= 0 else -1]
+        return last.x, last.y
+    a, b = samples[k - 1], samples[k]
+    f = (t - a.t) / (b.t - a.t) if b.t > a.t else 0.0
+    return a.x + f * (b.x - a.x), a.y + f * (b.y - a.y)
+
+
 def _first_fall(result: SimResult) -> Sample | None:
     for s in result.samples:
         if s.tilt > FALLEN_TILT_RAD:
@@ -370,6 +406,7 @@ __all__ = [
     "CIRCLE_LAPS",
     "PER_JOINT",
     "TRACK_M",
+    "circle_reckoned_return_m",
     "circle_return_m",
     "cost_of_transport",
     "fell_at_s",
