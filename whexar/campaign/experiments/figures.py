@@ -42,7 +42,7 @@ from whexar.actors.locomotion.intent import POSE_LIMIT_RAD
 from whexar.campaign.experiments.metrics import TILT_SPAN_S
 from whexar.campaign.experiments.reference import Reference, Rules, Single, Why, reference
 from whexar.config.motion import LocomotionSpec
-from whexar.sim.tilt import BoardTilt
+from whexar.sim.scenario import TiltSpec
 
 if TYPE_CHECKING:
     from whexar.campaign.rows import Row
@@ -392,15 +392,20 @@ def _table_6_6(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
     return out
 
 
-def tilted(rows: Iterable[Row], label: str, trochanter: bool) -> list[float] | None:
-    """The board angles (°) where the tilting-board runs of ``label`` (runs with a ``tilt``)
-    failed (``tilt_limit_deg``), one per run that has one; ``None`` when ``label`` names no
-    such runs."""
-    board = [
+def _board_runs(rows: Iterable[Row], label: str, trochanter: bool) -> list[Row]:
+    """The tilting-board runs (runs with a ``tilt``) of ``label``, with or without trochanter."""
+    return [
         r
         for r in rows
         if r.label == label and trochanter_of(r) == trochanter and "tilt" in r.variation
     ]
+
+
+def tilted(rows: Iterable[Row], label: str, trochanter: bool) -> list[float] | None:
+    """The board angles (°) where the tilting-board runs of ``label`` (runs with a ``tilt``)
+    failed (``tilt_limit_deg``), one per run that has one; ``None`` when ``label`` names no
+    such runs."""
+    board = _board_runs(rows, label, trochanter)
     if not board:
         return None
     found = (number(r, "tilt_limit_deg") for r in board)  # a failed run has none
@@ -410,14 +415,11 @@ def tilted(rows: Iterable[Row], label: str, trochanter: bool) -> list[float] | N
 def held_to_the_end(rows: Iterable[Row], label: str, trochanter: bool) -> float | None:
     """The board's last measured angle (°) when a tilting-board run of ``label`` never
     failed (its ``tilt_limit_deg`` is that angle, so the limit lies above), else ``None``."""
-    for r in rows:
-        tilt, to_s = r.variation.get("tilt"), r.variation.get("measure.to_s")
-        limit = number(r, "tilt_limit_deg")
-        if r.label != label or trochanter_of(r) != trochanter or limit is None:
+    for r in _board_runs(rows, label, trochanter):
+        limit, to_s = number(r, "tilt_limit_deg"), r.variation.get("measure.to_s")
+        if limit is None or not isinstance(to_s, int | float):
             continue
-        if not isinstance(tilt, Mapping) or not isinstance(to_s, int | float):
-            continue
-        board = BoardTilt(**{k: float(tilt[k]) for k in ("start_s", "rate_deg_s", "max_deg")})
+        board = TiltSpec.model_validate(r.variation["tilt"]).board()  # as the run read it
         # A failure is dated by the start of its span, at most the window's end less a
         # span: a later angle is the one the metric gives when nothing failed. A board
         # held at its top is never steeper: there any limit means "at least the top".
