@@ -24,6 +24,7 @@ from whexar.runtime.actor import Actor, ActorParams
 from whexar.runtime.clock import run
 from whexar.runtime.errors import DeviceUnavailableError
 from whexar.runtime.messages import (
+    ActorDisabled,
     ActorEscalated,
     ActorFailed,
     ActorReady,
@@ -43,7 +44,7 @@ from whexar.runtime.supervisor import (
     Runtime,
     describe,
 )
-from whexar.runtime.wiring import build_graph
+from whexar.runtime.wiring import WiringError, build_graph
 from whexar.testing import Harness, MessageLog, RunResult, run_actors
 
 PULSE = "whexar.testing:Pulse"
@@ -291,6 +292,35 @@ def test_restart_then_escalation() -> None:
         "ActorStopped",
         "ActorStopped",
     ]
+
+
+def test_an_actor_whose_policy_says_disable_stays_down_and_the_run_goes_on() -> None:
+    flaky = actor("flaky", period_s=0.125, fail_after_s=0.25)
+    flaky["restart"] = {**RESTART, "exhausted": "disable"}
+    result = run_actors(
+        graph(actor("first", period_s=0.5), flaky, actor("last", period_s=0.5)), duration=5.0
+    )
+    (disabled,) = result.events(ActorDisabled)
+    assert (disabled.actor, disabled.failures, disabled.t) == ("flaky", 3, 0.875)
+    assert disabled.error.startswith("InjectedFailure: flaky: failed at cycle 2")
+    assert result.events(ActorEscalated) == []
+    assert result.events(SafeStop) == []
+    assert result.exit_code == EXIT_CLEAN
+    # The others ran to the end of the run; the disabled actor was never started again.
+    assert stopped(result) == [
+        ("flaky", "disabled", 0.875),
+        ("last", "stop", 5.0),
+        ("first", "stop", 5.0),
+    ]
+    assert max(m.t for m in result.messages("last", of=Heartbeat)) >= 4.5
+    assert max(e.incarnation for e in result.events(ActorStarting) if e.actor == "flaky") == 2
+
+
+def test_a_restart_policy_with_an_unknown_exhaustion_is_refused() -> None:
+    flaky = actor("flaky")
+    flaky["restart"] = {"exhausted": "ignore"}
+    with pytest.raises(WiringError, match="exhausted"):
+        run_actors(graph(flaky), duration=1.0)
 
 
 def test_a_device_unavailable_at_start_stops_the_run_without_restarts() -> None:

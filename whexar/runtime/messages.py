@@ -138,8 +138,20 @@ class ActorEscalated(Event):
 
 
 @message
+class ActorDisabled(Event):
+    """``actor`` failed more than its policy allows and stays down; the run goes on
+    (its policy says ``exhausted = "disable"``). ``error`` is its last failure."""
+
+    actor: str
+    failures: int
+    window_s: float
+    error: str
+
+
+@message
 class ActorStopped(Event):
-    """``actor`` ended: ``reason`` is stop, returned or escalated; ``timed_out`` if it overran."""
+    """``actor`` ended: ``reason`` is stop, returned, escalated or disabled; ``timed_out`` if
+    it overran."""
 
     actor: str
     reason: str

@@ -20,7 +20,9 @@ Supervision: an actor whose ``run()`` raises (or does not report ready in
 ``ready_timeout_s``) is discarded; after its policy's delay a fresh instance
 starts, unless that failure makes more than ``max_restarts`` within
 ``window_s``. Then the actor is *escalated*: it stays down, the runtime stops
-safely and :meth:`run` returns :data:`EXIT_ESCALATED`. Every step is an
+safely and :meth:`run` returns :data:`EXIT_ESCALATED` — or, where its policy
+says ``exhausted = "disable"`` (an actor the robot can do without, such as a
+reflex), it is *disabled*: it stays down and the rest runs on. Every step is an
 :class:`~whexar.runtime.messages.Event` on the ``events`` channel; a failure
 carries its traceback. ``SystemExit`` (``sys.exit()``) and
 ``KeyboardInterrupt`` raised in an actor are failures like any other: an
@@ -88,6 +90,7 @@ from whexar.runtime.channels import (
 from whexar.runtime.clock import Clock, VirtualTimeRealIOError, WallAlarm
 from whexar.runtime.errors import DeviceUnavailableError, UsageError
 from whexar.runtime.messages import (
+    ActorDisabled,
     ActorEscalated,
     ActorFailed,
     ActorReady,
@@ -394,8 +397,12 @@ class Runtime:
                     while failures[0] < now - policy.window_s:
                         failures.popleft()
                     if len(failures) > policy.max_restarts:
-                        reason = "escalated"
-                        self._escalate(node, len(failures), error)
+                        if policy.exhausted == "disable":
+                            reason = "disabled"
+                            self._disable(node, len(failures), error)
+                        else:
+                            reason = "escalated"
+                            self._escalate(node, len(failures), error)
                         break
                     await clock.sleep(policy.delay_s)
                     incarnation += 1
@@ -491,6 +498,18 @@ class Runtime:
         elif unavailable:
             self._unavailable(str(leaf), node.name)  # no restart helps: plug it in, free it
         return error
+
+    def _disable(self, node: ActorNode, failures: int, error: str) -> None:
+        self.emit(
+            ActorDisabled(
+                t=self.clock.now(),
+                source=RUNTIME,
+                actor=node.name,
+                failures=failures,
+                window_s=node.restart.window_s,
+                error=error,
+            )
+        )
 
     def _escalate(self, node: ActorNode, failures: int, error: str) -> None:
         window = node.restart.window_s

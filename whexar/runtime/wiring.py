@@ -41,7 +41,7 @@ import importlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationError
 
@@ -75,12 +75,16 @@ class WiringError(ConfigError):
 
 
 class RestartPolicy(Section):
-    """Restart a failed actor up to ``max_restarts`` times within ``window_s``; then escalate."""
+    """Restart a failed actor up to ``max_restarts`` times within ``window_s``; then
+    escalate (the runtime stops safely) or, with ``exhausted = "disable"``, leave the
+    actor down while the rest runs on (an actor the robot can do without: a reflex)."""
 
     max_restarts: int = Field(3, ge=0)
     window_s: Positive = 10.0
     delay_s: NonNegative = 0.1
     """Pause before a restart, so a failing device is not hammered."""
+    exhausted: Literal["escalate", "disable"] = "escalate"
+    """What a failure past ``max_restarts`` does: stop the run, or disable the actor."""
 
 
 class RuntimeSettings(Section):
