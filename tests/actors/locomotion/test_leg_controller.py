@@ -267,9 +267,52 @@ def test_a_contact_that_never_went_away_is_not_believed() -> None:
     assert [e.outcome for e in swing_ends(out)] == []
 
 
-def override(t: float, angle: float) -> JointGoals:
-    g = JointGoal(t=t, source="reflex", leg=0, joint=FEMUR, position_rad=angle)
-    return JointGoals(t=t, source="reflex", goals=(g,), reflex=True)
+def override(t: float, angle: float, *, priority: int = 0, source: str = "reflex") -> JointGoals:
+    g = JointGoal(t=t, source=source, leg=0, joint=FEMUR, position_rad=angle)
+    return JointGoals(t=t, source=source, goals=(g,), reflex=True, priority=priority)
+
+
+def femur_goals(out: list[Message]) -> list[tuple[float, float]]:
+    return [
+        (m.t, g.position_rad)
+        for m in goals_of(out)
+        for g in m.goals
+        if g.joint == FEMUR and g.position_rad is not None
+    ]
+
+
+@pytest.mark.parametrize("order", [(0, 1), (1, 0)])
+def test_contradictory_overrides_in_one_cycle_are_decided_by_priority(
+    order: tuple[int, int],
+) -> None:
+    leg, angles = placed("none")
+    own = angles[FEMUR]
+    low = override(2.0, own + 0.2, priority=1, source="low")
+    high = override(2.0, own - 0.2, priority=5, source="high")
+    msgs = tuple((low, high)[i] for i in order)
+    out = run(leg, 2.0, 2.1, angles, overrides=msgs)
+    assert femur_goals(out)[0] == (2.0, own - 0.2)
+
+
+def test_a_lower_priority_override_waits_for_a_higher_one_to_let_go() -> None:
+    leg, angles = placed("none")
+    own = angles[FEMUR]
+    hold = CFG.locomotion.reflex_hold_s
+    run(leg, 2.0, 2.05, angles, overrides=(override(2.0, own - 0.2, priority=5, source="hi"),))
+    # Still held: a lower priority's goal is refused, an equal or higher one taken.
+    run(leg, 2.05, 2.1, angles, overrides=(override(2.05, own + 0.2, priority=1, source="lo"),))
+    assert leg.overrides[FEMUR][0] == own - 0.2
+    out = run(
+        leg, 2.1, 2.15, angles, overrides=(override(2.1, own + 0.3, priority=5, source="hi"),)
+    )
+    assert femur_goals(out)[0] == (2.1, own + 0.3)
+    # Once it is no longer held, the lower priority takes the joint.
+    later = 2.1 + hold + 0.05
+    run(leg, 2.15, later, angles)
+    out = run(
+        leg, later, later + 0.05, angles, overrides=(override(later, own + 0.1, source="lo"),)
+    )
+    assert femur_goals(out)[0] == (later, own + 0.1)
 
 
 def test_an_override_holds_the_joint_then_blends_back_without_a_jump() -> None:

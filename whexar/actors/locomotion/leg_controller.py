@@ -51,7 +51,9 @@ the trochanter at −π, IK is the upright IK of the mirrored leg.
 Overrides (the interface the reactive layer uses): :class:`JointGoals`
 marked ``reflex`` on the leg's override input. Each goal for one of this
 leg's positioning joints (coxa…tarsus) takes that joint over for
-``locomotion.reflex_hold_s`` from the goal's ``t``; the leg's own
+``locomotion.reflex_hold_s`` from the goal's ``t``, unless an override of
+higher ``priority`` holds it (goals of one cycle, or one still held: the
+priority decides, then the source's name, never the order of arrival); the leg's own
 trajectory goes on underneath. Once no override has held the joint for
 ``reflex_hold_s``, the leg blends from the override's angle back to its own
 over ``locomotion.reflex_blend_s``: no jump. An override keeps control by
@@ -137,8 +139,8 @@ class LegController:
         self.contact = False
         self.fsr_t = -math.inf
         self.fsr_contact = False
-        self.overrides: dict[int, tuple[float, float]] = {}
-        """joint → (angle, time of the override goal)."""
+        self.overrides: dict[int, tuple[float, float, tuple[int, str]]] = {}
+        """joint → (angle, time of the override goal, its (priority, source))."""
         self.blends: dict[int, tuple[float, float]] = {}
         """joint → (override angle at release, release time)."""
         self.wheel_radius = self.geometry.wheel_radius
@@ -219,16 +221,28 @@ class LegController:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
 
-    def _take_overrides(self, overrides: Iterable[JointGoals]) -> None:
+    def _take_overrides(self, t: float, overrides: Iterable[JointGoals]) -> None:
+        # Per joint, the highest priority wins — among this cycle's goals and over one
+        # still held — then the source's name: never the order they arrived in.
+        hold = self.loco.reflex_hold_s
         for msg in overrides:
             if not msg.reflex:
                 continue
+            rank = (msg.priority, msg.source)
             for g in msg.goals:
                 angle = g.position_rad
                 mine = g.leg == self.leg and g.joint < _POSITIONING
-                if mine and angle is not None and math.isfinite(angle):
-                    self.overrides[g.joint] = (angle, msg.t)
-                    self.blends.pop(g.joint, None)
+                if not (mine and angle is not None and math.isfinite(angle)):
+                    continue
+                held = self.overrides.get(g.joint)
+                if (
+                    held is not None
+                    and t - held[1] <= hold
+                    and (held[2] > rank or (held[2] == rank and held[1] > msg.t))
+                ):
+                    continue
+                self.overrides[g.joint] = (angle, msg.t, rank)
+                self.blends.pop(g.joint, None)
 
     # ----------------------------------------------------------------- contact
 
@@ -345,7 +359,7 @@ class LegController:
         hold, blend = self.loco.reflex_hold_s, self.loco.reflex_blend_s
         held = False
         out = list(angles)
-        for joint, (angle, since) in list(self.overrides.items()):
+        for joint, (angle, since, _) in list(self.overrides.items()):
             if t - since <= hold:
                 out[joint] = angle
                 held = True
@@ -386,7 +400,7 @@ class LegController:
         self._take_state(states)
         self._take_motion(motion)
         self._take_loads(loads)
-        self._take_overrides(overrides)
+        self._take_overrides(now, overrides)
         for cmd in steps:
             if cmd.leg == self.leg:
                 self._begin(cmd)
