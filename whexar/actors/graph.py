@@ -13,7 +13,9 @@ servo port of ``bus``, the board port of ``sensors``, the I²C device of
 configuration file given to every actor that reads one, and, for a harness
 or a replay that publishes a channel itself (``feeds``), the actors that
 publish nothing else left out. Channels nobody publishes any more are
-unwired from their subscribers' inputs, so the document stays valid.
+unwired from their subscribers' inputs, so the document stays valid. The
+reflexes written as ``[[reflexes]]`` — in the graph file or the robot
+configuration — become actors of their own (:func:`with_reflexes`).
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, Final
 
+from whexar.actors.reactive import add_reflexes, parse_entries
+from whexar.config import load_config
 from whexar.runtime.errors import UsageError
 from whexar.runtime.schema import read_toml
 from whexar.runtime.wiring import actor_names, set_param
@@ -34,7 +38,7 @@ ROBOT_GRAPH: Final = GRAPH_DIR / "walk.toml"
 """The robot's graph."""
 EDGES: Final = {"bus": "port", "sensors": "port", "imu": "device", "commands": "source"}
 """The robot's edge actors and the parameter that names each one's device or front end."""
-CONFIGURED: Final = ("bus", "sensors", "imu", "leg-*", "coordinator", "commands")
+CONFIGURED: Final = ("bus", "sensors", "imu", "leg-*", "coordinator", "commands", "reflex-*")
 """The robot graph's actors that read the robot configuration (their ``config``
 parameter), as shell patterns of their names."""
 
@@ -74,6 +78,7 @@ def robot_graph(
     """
     source = str(path)
     doc = _read(Path(path))
+    with_reflexes(doc, source=source, config=config)
     names = actor_names(doc)
     for actor, value in (("bus", bus), ("sensors", sensors), ("imu", imu), ("commands", commands)):
         if value is not None:
@@ -91,6 +96,17 @@ def robot_graph(
                 set_param(doc, f"{name}.{key}", value, source=source, option="params")
     _leave_out(doc, set(leave_out), set(feeds), source)
     return doc
+
+
+def with_reflexes(doc: dict[str, Any], *, source: str, config: str | Path | None) -> None:
+    """The graph document ``doc`` with its ``[[reflexes]]`` and the robot configuration's
+    (``config``'s) made into actors (:func:`~whexar.actors.reactive.add_reflexes`)."""
+    entries = parse_entries(doc.pop("reflexes"), "reflexes", source) if "reflexes" in doc else []
+    if config is not None:
+        cfg = load_config(config)
+        entries += [(f"{config}: reflexes[{i}]", e) for i, e in enumerate(cfg.reflexes)]
+    if entries:
+        add_reflexes(doc, entries, source=source, config=str(config) if config else None)
 
 
 def _leave_out(doc: dict[str, Any], names: set[str], feeds: set[str], source: str) -> None:

@@ -38,11 +38,13 @@ class JointGoals(Message):
     ``reflex`` marks an override, sent by a reflex to a leg's ``reflex`` input:
     the leg alone decides each of its joints' goals (it holds the override, then
     blends back, :mod:`whexar.actors.locomotion.leg_controller`) and sends the bus
-    the result. The bus gives the flag no meaning.
+    the result. The bus gives the flag no meaning. ``priority`` ranks overrides: for
+    one joint, the highest wins, whatever the order they came in.
     """
 
     goals: tuple[JointGoal, ...]
     reflex: bool = False
+    priority: int = 0
 
 
 class JointState(NamedTuple):
@@ -673,6 +675,22 @@ class SwingEnded(Message):
     leg: int
     outcome: SwingOutcome
     ground_offset_m: float
+
+
+@message
+class ReflexActivity(Message):
+    """Reflex ``reflex`` became active (``active``) or went quiet, and why.
+
+    Each reflex publishes its changes on the ``reflex-activity`` channel, and every reflex
+    reads it: while a reflex is active, the reflexes it names in ``inhibits`` are held
+    back (:mod:`whexar.actors.reactive`). ``inhibited`` is True while this reflex is
+    itself held back."""
+
+    reflex: str
+    active: bool
+    reason: str = ""
+    inhibits: tuple[str, ...] = ()
+    inhibited: bool = False
 
 
 @message

@@ -134,10 +134,10 @@ def _stdin_is_a_terminal() -> bool:
 
 def load_run_graph(args: argparse.Namespace) -> Graph:
     """The wiring file of ``args.graph`` with the options' overrides, built and checked."""
-    from whexar.actors.graph import CONFIGURED
+    from whexar.actors.graph import CONFIGURED, with_reflexes
     from whexar.config import load_config
     from whexar.runtime.schema import read_toml
-    from whexar.runtime.wiring import build_graph, load_graph
+    from whexar.runtime.wiring import build_graph
 
     if args.keyboard and args.virtual:
         raise UsageError(
@@ -154,10 +154,11 @@ def load_run_graph(args: argparse.Namespace) -> Graph:
     overrides = _overrides(args)
     if args.config is not None:
         load_config(args.config)  # a bad file is named, key by key, before any actor starts
-    elif not overrides:
-        return load_graph(args.graph)
     source = str(args.graph)
     data = read_toml(args.graph)
+    with_reflexes(data, source=source, config=args.config)  # [[reflexes]]: their actors
+    if args.config is None and not overrides:
+        return build_graph(data, source=source)
     names = actor_names(data)
     chosen = [
         option

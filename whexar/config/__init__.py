@@ -29,8 +29,9 @@ document in two layers, so that one bad key never hides another:
 The sections, by module: :mod:`~.parts` (body, servo models, joints, DH, legs),
 :mod:`~.links` (bus, sensor board, IR, FSR, IMU), :mod:`~.motion` (gait selector,
 stances, locomotion), :mod:`~.gamepad` (the gamepad's mapping), :mod:`~.recording` (the
-recordings' budget on the disk), :mod:`~.loading` (the whole robot, its cross-checks,
-loading and the schema); :mod:`~.common` what they share. Import every name from here.
+recordings' budget on the disk), :mod:`~.reflexes` (the reflexes it runs),
+:mod:`~.loading` (the whole robot, its cross-checks, loading and the schema);
+:mod:`~.common` what they share. Import every name from here.
 
 May import: the device links (:mod:`whexar.bus`, :mod:`whexar.sensors`),
 :mod:`whexar.kinematics`, :mod:`whexar.robot`, :mod:`whexar.errors` and
@@ -78,6 +79,7 @@ from whexar.config.parts import (
     ServoModelSpec,
 )
 from whexar.config.recording import RecordingSpec
+from whexar.config.reflexes import ReflexEntry
 
 __all__ = [
     "DH_SEGMENT_TOLERANCE_MM",
@@ -102,6 +104,7 @@ __all__ = [
     "LegSpec",
     "LocomotionSpec",
     "RecordingSpec",
+    "ReflexEntry",
     "RobotConfig",
     "RobotSpec",
     "SensorBoardSpec",

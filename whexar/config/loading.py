@@ -35,6 +35,7 @@ from whexar.config.parts import (
     default_servo_models,
 )
 from whexar.config.recording import RecordingSpec
+from whexar.config.reflexes import ReflexEntry
 from whexar.errors import ConfigError, KinematicsError, Problem
 from whexar.kinematics.body import Stance, stance_feet
 from whexar.kinematics.geometry import LegGeometry
@@ -72,6 +73,8 @@ class RobotConfig(CheckedSection):
     locomotion: LocomotionSpec = LocomotionSpec()
     gamepad: GamepadSpec = GamepadSpec()
     recording: RecordingSpec = RecordingSpec()
+    reflexes: tuple[ReflexEntry, ...] = ()
+    """The reflexes the robot runs, beside those its graph names (``[[reflexes]]``)."""
 
     def problems(self, at: str = "") -> list[Problem]:
         """Every relational problem of the whole configuration."""

@@ -1,5 +1,11 @@
 """The reactive layer: reflexes, the contact estimate, the terrain estimator and the gait
-selector (Žák 2023, 4.2.2–4.2.4, 5.4, 6.7). Empty today; this is where they will live.
+selector (Žák 2023, 4.2.2–4.2.4, 5.4, 6.7).
+
+Today: the plug-in interface — :class:`Reflex` (a reflex's policy: declared inputs,
+validated ``Params``, a priority, what it inhibits), :class:`ReflexActor` (the shell
+that runs one) and ``[[reflexes]]`` (:func:`add_reflexes`: written in the graph file or
+the robot configuration, found by class path or the ``whexar.reflexes`` entry points);
+docs/extending.md walks through one.
 
 What will live here, one actor each, each a thin shell around a plain class (its policy,
 tested directly): the reflexes of the thesis (trochanter, tarsus, stepping, elevator,
@@ -21,9 +27,34 @@ How a reflex plugs in — no file of the core changes:
   layer: a step height, a stop, a gait);
 * its thresholds and gains are its ``Params`` (validated, each with its source).
 
-README, "Adding an actor", walks through one, and ``tests/actors/reactive/`` holds the
-worked example as a test.
+docs/extending.md (a reflex plug-in) and docs/architecture.md, "Adding an actor" (any
+actor) walk through one; ``tests/actors/reactive/`` runs both as tests.
 
 May import: :mod:`whexar.actors.messages`, :mod:`whexar.config` and the layers below;
 never another actor subsystem (the actors talk through messages), nor the test helpers.
 """
+
+from whexar.actors.reactive.layer import ACTIVITY, OVERRIDES, add_reflexes, parse_entries
+from whexar.actors.reactive.reflex import (
+    ENTRY_POINTS,
+    STREAMS,
+    Reflex,
+    ReflexParams,
+    check_params,
+    resolve_reflex,
+)
+from whexar.actors.reactive.shell import ReflexActor
+
+__all__ = [
+    "ACTIVITY",
+    "ENTRY_POINTS",
+    "OVERRIDES",
+    "STREAMS",
+    "Reflex",
+    "ReflexActor",
+    "ReflexParams",
+    "add_reflexes",
+    "check_params",
+    "parse_entries",
+    "resolve_reflex",
+]
