@@ -18,7 +18,6 @@ from whexar.actors.messages import JointGoals, ReflexActivity, SwingEnded
 from whexar.actors.reactive import (
     ACTIVITY,
     OVERRIDES,
-    Reflex,
     add_reflexes,
     check_params,
     parse_entries,
@@ -125,9 +124,7 @@ def test_the_policy_is_a_plain_class_its_test_calls(plugins: ModuleType) -> None
         ("my_reflexes:", "expected 'package.module:Class'"),
     ],
 )
-def test_a_wrong_reflex_name_says_what_is_wrong(
-    plugins: ModuleType, kind: str, says: str
-) -> None:
+def test_a_wrong_reflex_name_says_what_is_wrong(plugins: ModuleType, kind: str, says: str) -> None:
     with pytest.raises(LookupError, match=says):
         resolve_reflex(kind)
 
@@ -311,4 +308,4 @@ def test_a_reflex_that_keeps_failing_is_disabled_and_the_others_go_on(
     assert disabled.actor == "reflex-broken"
     assert r.exit_code == 0
     # The other reflex answered every swing end, before and after.
-    assert len([g for g in r.messages(OVERRIDES, of=JointGoals)]) == 9
+    assert len(r.messages(OVERRIDES, of=JointGoals)) == 9
