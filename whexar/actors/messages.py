@@ -678,6 +678,30 @@ class SwingEnded(Message):
 
 
 @message
+class ReflexRequest(Message):
+    """Reflex ``reflex`` asks the coordinator for something (its ``requests`` input); a
+    field left ``None`` leaves that request of the reflex as it was.
+
+    * ``step_height_m``: swing at least this high (the elevator reflex, 6.7.2); 0 withdraws;
+    * ``halt``: hold the body still, feet down, until the reflex says ``False`` (the
+      obstacle reflex's stop, 4.2.2);
+    * ``yaw_rate_rad_s``: add this to the commanded turn rate while the body translates
+      (heading hold); 0 withdraws;
+    * ``sit_down``: sit down and stay seated (the battery reflex, 5.3.1): the operator's
+      commands are refused from then on.
+
+    The operator's command stays what the robot wants; the requests bend it while they
+    last. ``reason`` says why, in a few words (the coordinator's events repeat it)."""
+
+    reflex: str
+    step_height_m: float | None = None
+    halt: bool | None = None
+    yaw_rate_rad_s: float | None = None
+    sit_down: bool = False
+    reason: str = ""
+
+
+@message
 class ReflexActivity(Message):
     """Reflex ``reflex`` became active (``active``) or went quiet, and why.
 

@@ -22,6 +22,7 @@ from whexar.actors.messages import (
     LocomotionChanged,
     LocomotionState,
     MotionCommand,
+    ReflexRequest,
     ServoStates,
     StepCommand,
     SwingDelayed,
@@ -84,8 +85,9 @@ def drive(
     t0: float,
     t1: float,
     commands: Mapping[float, MotionCommand] = {},
+    requests: Mapping[float, ReflexRequest] = {},
 ) -> list[Message]:
-    """Cycles every :data:`DT` from ``t0`` to ``t1``; each command at its time."""
+    """Cycles every :data:`DT` from ``t0`` to ``t1``; each command and request at its time."""
     said: list[Message] = []
     n = round((t1 - t0) / DT)
     for k in range(n):
@@ -93,7 +95,8 @@ def drive(
         cycle = round(t / DT)
         states = ServoStates(t=t, source="bus", cycle=cycle, joints=())
         now = [c for at, c in commands.items() if abs(at - t) < DT / 2]
-        out = planner.cycle(states, commands=now, legs=legs.states(t, cycle))
+        asked = [r for at, r in requests.items() if abs(at - t) < DT / 2]
+        out = planner.cycle(states, commands=now, legs=legs.states(t, cycle), requests=asked)
         for msg in out:
             if isinstance(msg, StepCommand):
                 legs.take(msg)
@@ -207,6 +210,95 @@ def test_a_safe_stop_sits_down_and_refuses_what_comes_after() -> None:
     assert refused.reason == "a safe stop is under way"
     assert not planner.begin_sit(t0 + 4.5)  # seated already
     assert all(f is not None and f[2] > -0.1 for f in legs.feet.values())
+
+
+def ask(reflex: str = "reflex-test", **fields: object) -> ReflexRequest:
+    return ReflexRequest(t=0.0, source=reflex, reflex=reflex, **fields)  # type: ignore[arg-type]
+
+
+def states_of(said: list[Message]) -> list[LocomotionState]:
+    return [m for m in said if isinstance(m, LocomotionState)]
+
+
+def test_a_reflex_that_asks_to_sit_down_sits_the_robot_and_it_stays_seated() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    drive(planner, legs, t0, t0 + 2.0, {t0: cmd(vx_m_s=0.1)})
+    said = drive(
+        planner,
+        legs,
+        t0 + 2.0,
+        t0 + 5.0,
+        {t0 + 4.0: cmd(vx_m_s=0.1)},
+        {t0 + 2.0: ask("reflex-battery", sit_down=True, reason="battery at 10.1 V")},
+    )
+    (seated_by,) = [e for e in said if isinstance(e, LocomotionChanged) and e.what == "seated_by"]
+    assert seated_by.after == "reflex-battery: battery at 10.1 V"
+    assert activities(said)[-2:] == [("walking", "sitting_down"), ("sitting_down", "seated")]
+    (refused,) = [e for e in said if isinstance(e, CommandRefused)]
+    assert refused.reason == "reflex-battery sat the robot down: battery at 10.1 V"
+    assert planner.activity == Activity.SEATED
+
+
+def test_a_halt_stops_the_body_until_withdrawn_and_the_walk_goes_on() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    said = drive(
+        planner,
+        legs,
+        t0,
+        t0 + 8.0,
+        {t0: cmd(vx_m_s=0.1)},
+        {t0 + 2.0: ask(halt=True, reason="obstacle"), t0 + 5.0: ask(halt=False)},
+    )
+    speed = {round(s.t, 2): s.twist[0] for s in states_of(said)}
+    assert speed[t0 + 1.9] == pytest.approx(0.1)
+    assert speed[t0 + 4.9] == pytest.approx(0.0, abs=1e-6)  # held still
+    assert speed[t0 + 7.9] == pytest.approx(0.1)  # the operator's walk again
+    assert planner.want.vx == pytest.approx(0.1)  # what the operator wants never changed
+
+
+def test_the_step_is_as_high_as_the_highest_request_within_the_limit() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    own = planner.want.step_height
+    limit = CFG.locomotion.max_step_height_mm / 1000
+    said = drive(
+        planner,
+        legs,
+        t0,
+        t0 + 9.0,
+        {t0: cmd(vx_m_s=0.1)},
+        {
+            t0 + 2.0: ask("reflex-a", step_height_m=own + 0.02),
+            t0 + 4.0: ask("reflex-b", step_height_m=10.0),
+            t0 + 6.0: ask("reflex-b", step_height_m=0.0),
+        },
+    )
+    swings = [(m.t, m.height_m) for m in said if isinstance(m, StepCommand) and m.kind == "swing"]
+    heights = {
+        "before": {round(h, 6) for t, h in swings if t < t0 + 2.0},
+        "one": {round(h, 6) for t, h in swings if t0 + 2.1 < t < t0 + 4.0},
+        "both": {round(h, 6) for t, h in swings if t0 + 4.1 < t < t0 + 6.0},
+        "one again": {round(h, 6) for t, h in swings if t > t0 + 6.1},
+    }
+    assert heights == {
+        "before": {round(own, 6)},
+        "one": {round(own + 0.02, 6)},
+        "both": {round(limit, 6)},
+        "one again": {round(own + 0.02, 6)},
+    }
+
+
+def test_a_heading_correction_turns_a_translating_body_only() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    said = drive(planner, legs, t0, t0 + 2.0, requests={t0: ask(yaw_rate_rad_s=0.05)})
+    assert all(s.twist == (0.0, 0.0, 0.0) for s in states_of(said))  # standing: no spin
+    said = drive(planner, legs, t0 + 2.0, t0 + 6.0, {t0 + 2.0: cmd(vx_m_s=0.1)})
+    assert states_of(said)[-1].twist[2] == pytest.approx(0.05)
+    said = drive(planner, legs, t0 + 6.0, t0 + 8.0, requests={t0 + 6.0: ask(yaw_rate_rad_s=0.0)})
+    assert states_of(said)[-1].twist[2] == pytest.approx(0.0, abs=1e-9)
 
 
 def test_no_sit_down_when_the_bus_went_silent() -> None:

@@ -18,6 +18,7 @@ from whexar.actors.messages import JointGoals, ReflexActivity, SwingEnded
 from whexar.actors.reactive import (
     ACTIVITY,
     OVERRIDES,
+    REQUESTS,
     add_reflexes,
     check_params,
     parse_entries,
@@ -107,6 +108,7 @@ def test_the_policy_is_a_plain_class_its_test_calls(plugins: ModuleType) -> None
     cls = resolve_reflex("my_reflexes:ReachDown")
     policy = cls(check_params(cls, {"femur_rad": -0.4}), name="reach", cfg=RobotConfig())
     (goals,) = policy.react(1.0, swing(1.0, leg=3))
+    assert isinstance(goals, JointGoals)
     assert goals.reflex
     assert [(g.leg, g.joint, g.position_rad) for g in goals.goals] == [(3, FEMUR, -0.4)]
     assert policy.active
@@ -153,7 +155,13 @@ def test_reflexes_become_actors_wired_to_the_robot(plugins: ModuleType) -> None:
     )
     (actor,) = [a for a in doc["actors"] if a["name"] == "reflex-reachdown"]
     assert actor["inputs"] == {"swings": "swings", "activity_in": ACTIVITY}
-    assert actor["outputs"] == {"override": OVERRIDES, "activity": ACTIVITY}
+    assert actor["outputs"] == {
+        "override": OVERRIDES,
+        "request": REQUESTS,
+        "activity": ACTIVITY,
+    }
+    (coordinator,) = [a for a in doc["actors"] if a["name"] == "coordinator"]
+    assert coordinator["inputs"]["requests"] == REQUESTS
     assert actor["params"]["priority"] == 4
     assert actor["restart"]["exhausted"] == "disable"
     legs = [a for a in doc["actors"] if a["name"].startswith("leg-")]

@@ -4,7 +4,7 @@ Theory of operation
 -------------------
 The actor wakes on every :class:`ServoStates`, like the legs, takes what
 arrived on its other inputs — motion commands, the legs' states, the newest
-body tilt — hands it to its
+body tilt, the reflexes' requests — hands it to its
 :class:`~whexar.actors.locomotion.planner.LocomotionPlanner`, and publishes
 what the planner returns, in its order: events on the events channel,
 :class:`StepCommand` s on ``steps``, :class:`BodyMotion` on ``motion``,
@@ -31,6 +31,7 @@ from whexar.actors.messages import (
     LegState,
     LocomotionState,
     MotionCommand,
+    ReflexRequest,
     ServoStates,
     StepCommand,
 )
@@ -53,6 +54,8 @@ class Coordinator(Actor):
     commands = Input(MotionCommand, optional=True)
     legs = Input(LegState, optional=True)
     tilt = Input(BodyTilt, optional=True)
+    requests = Input(ReflexRequest, optional=True)
+    """What the reflexes ask: a higher step, a halt, a heading correction, to sit down."""
     steps = Output(StepCommand)
     motion = Output(BodyMotion)
     state = Output(LocomotionState, optional=True)
@@ -82,6 +85,7 @@ class Coordinator(Actor):
         commands_in = self.commands if self.commands.connected else None
         legs_in = self.legs if self.legs.connected else None
         tilt_in = self.tilt if self.tilt.connected else None
+        requests_in = self.requests if self.requests.connected else None
         self.ready()
         try:
             async for states in self.servo_state:
@@ -92,6 +96,7 @@ class Coordinator(Actor):
                         legs=legs_in.drain() if legs_in is not None else (),
                         tilt=tilt_in.latest() if tilt_in is not None else None,
                         tilt_wired=tilt_in is not None,
+                        requests=requests_in.drain() if requests_in is not None else (),
                     )
                 )
         finally:

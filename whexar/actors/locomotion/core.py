@@ -21,6 +21,7 @@ from typing import Final
 import numpy as np
 
 from whexar.actors.locomotion.activity import Activity, checked
+from whexar.actors.locomotion.asks import Asks
 from whexar.actors.locomotion.frames import LegFrame
 from whexar.actors.locomotion.intent import Wanted
 from whexar.actors.messages import LocomotionChanged, StepCommand, Vec3
@@ -72,6 +73,8 @@ class PlannerCore:
         loco = self.loco = cfg.locomotion
         self.geometry = cfg.leg_geometry()
         self.want = Wanted.of(cfg)
+        self.asks = Asks(loco.max_step_height_mm / 1000)
+        """What the reflexes ask on top of what the operator wants (:mod:`.asks`)."""
         self.gait: Gait = GAITS[loco.gait]
         self.stance_name = loco.stance
         self.mode = "walk"
@@ -130,6 +133,14 @@ class PlannerCore:
         self.phase_running = False
         self.out: list[Message] = []
         """What this cycle says so far, in order (events and step commands)."""
+
+    def asked_twist(self) -> Vec3:
+        """The twist to move toward: the operator's, as the reflexes bend it."""
+        return self.asks.twist(self.want.twist())
+
+    def asked_step_height(self) -> float:
+        """The step height to swing with: the operator's, or higher where a reflex asks."""
+        return self.asks.step_height(self.want.step_height)
 
     # ----------------------------------------------------------------- saying
 

@@ -126,7 +126,7 @@ class Engines(Scripts):
     def _gait_tick(self, dt: float, hybrid: bool) -> None:
         loco = self.loco
         beta = self.gait.duty_factor
-        target = (0.0, 0.0, 0.0) if self.winding_down or self.delayed else self.want.twist()
+        target = (0.0, 0.0, 0.0) if self.winding_down or self.delayed else self.asked_twist()
         if hybrid:
             share = loco.hybrid_wheel_share
             legs_target = (
@@ -206,7 +206,7 @@ class Engines(Scripts):
                 swing_s = max(durations[i], self.loco.min_swing_s / 2)
                 self.swing_until[i] = self.t + swing_s
                 swinging[i] = True
-                self.send_step(i, "swing", swing_s, target, self.want.step_height)
+                self.send_step(i, "swing", swing_s, target, self.asked_step_height())
         self.delayed = False
         self.phase = new_phase % 1.0
         self._wheels_hybrid(hybrid, swinging)
@@ -265,7 +265,7 @@ class Engines(Scripts):
             self.headings = headings
 
     def _ride_tick(self, dt: float) -> None:
-        target = (0.0, 0.0, 0.0) if self.winding_down else self._limit_ride(self.want.twist())
+        target = (0.0, 0.0, 0.0) if self.winding_down else self._limit_ride(self.asked_twist())
         contacts = self.contacts()
         if any(abs(v) > STILL for v in target):
             headings, _ = self.wheels(contacts, *target)

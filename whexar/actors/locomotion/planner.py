@@ -47,6 +47,7 @@ from whexar.actors.messages import (
     LegState,
     LocomotionState,
     MotionCommand,
+    ReflexRequest,
     ServoStates,
 )
 from whexar.config import RobotConfig
@@ -83,6 +84,8 @@ class LocomotionPlanner(Engines):
         self.script = self.stand_up()  # the first script stands the robot up
         self.stopping = False
         """A safe stop is under way: the robot sits down and takes no more commands."""
+        self.stop_reason = "a safe stop is under way"
+        """Why commands are refused while :attr:`stopping`."""
         self.margin_m = math.inf
 
     # ----------------------------------------------------------------- the cycle
@@ -95,10 +98,12 @@ class LocomotionPlanner(Engines):
         legs: Iterable[LegState] = (),
         tilt: BodyTilt | None = None,
         tilt_wired: bool = False,
+        requests: Iterable[ReflexRequest] = (),
     ) -> list[Message]:
         """One control cycle (module docstring); ``tilt_wired`` says whether a tilt input
-        exists at all (without one, the trochanters follow the commanded pitch only).
-        Returns what the coordinator says, in order."""
+        exists at all (without one, the trochanters follow the commanded pitch only);
+        ``requests`` are the reflexes' (:mod:`.asks`). Returns what the coordinator says,
+        in order."""
         out = self.out = []
         self.t = t = states.t
         dt = 0.0 if self.last_t is None else t - self.last_t
@@ -110,9 +115,12 @@ class LocomotionPlanner(Engines):
         self._take_legs(legs)
         if tilt_wired:
             self._take_tilt(tilt, dt)
+        for req in requests:
+            if self.asks.take(req):
+                self._sit_for(req)
         for cmd in commands:
             if self.stopping:
-                out.append(refused(cmd, "a safe stop is under way", t=self.t, source=self.name))
+                out.append(refused(cmd, self.stop_reason, t=self.t, source=self.name))
                 continue
             self.clamp_said = False
             out.extend(take_command(self.want, cmd, self.cfg, t=self.t, source=self.name))
@@ -155,6 +163,14 @@ class LocomotionPlanner(Engines):
         self.leg_twist = self.wheel_twist = (0.0, 0.0, 0.0)
         self.speeds = (0.0,) * N_LEGS
         return True
+
+    def _sit_for(self, req: ReflexRequest) -> None:
+        """A reflex asks the robot to sit down and stay seated (the battery, 5.3.1)."""
+        why = f": {req.reason}" if req.reason else ""
+        self.changed("seated_by", "", f"{req.reflex}{why}")
+        if not self.stopping and not self.begin_sit(self.t):
+            self.stopping = True  # seated already, or never stood: it stays so
+        self.stop_reason = f"{req.reflex} sat the robot down{why}"
 
     def stop_cycle(self, states: ServoStates, legs: Iterable[LegState] = ()) -> list[Message]:
         """A cycle of the sit-down before a stop, once the actor's loop no longer runs: the
@@ -244,7 +260,7 @@ class LocomotionPlanner(Engines):
         if w.stop:
             w.stop = False
             if any(self.away(i, self.neutral_points[i]) for i in range(N_LEGS)):
-                return self.replace(self.neutral_points, w.step_height, self.replace_s())
+                return self.replace(self.neutral_points, self.asked_step_height(), self.replace_s())
             return None
         if w.stance != self.stance_name:
             return self.change_stance(w.stance, self.mode)

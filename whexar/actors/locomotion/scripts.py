@@ -110,7 +110,7 @@ class Scripts(PlannerCore):
         self.set_activity(Activity.TRANSITION)
         stance = self.stance(name)
         before = self.stance_name
-        step, replace_s = self.want.step_height, self.replace_s()
+        step, replace_s = self.asked_step_height(), self.replace_s()
         new_points = self.neutral(stance)
         beside = [(n[0], n[1], -self.height) for n in new_points]
         if self.reachable(beside):
@@ -193,7 +193,7 @@ class Scripts(PlannerCore):
         drive before any of them turns (as for riding, 5.4)."""
         yield from self.change_stance(stance, "hybrid")
         share = self.loco.hybrid_wheel_share
-        vx, vy, w = (v * share for v in self.want.twist())
+        vx, vy, w = (v * share for v in self.asked_twist())
         if any(abs(v) > STILL for v in (vx, vy, w)):
             cmd = wheel_twist(self.contacts(), vx, vy, w, wheel_radius=self.geometry.wheel_radius)
             yield from self.align(tuple(float(h) for h in cmd.heading))
@@ -202,5 +202,5 @@ class Scripts(PlannerCore):
     def placed_for_start(self, targets: list[Vec3]) -> Script:
         activity = self.activity
         self.set_activity(Activity.TRANSITION)
-        yield from self.replace(targets, self.want.step_height, self.replace_s())
+        yield from self.replace(targets, self.asked_step_height(), self.replace_s())
         self.set_activity(activity if activity != Activity.TRANSITION else Activity.STANDING)

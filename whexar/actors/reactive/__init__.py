@@ -23,8 +23,8 @@ How a reflex plugs in — no file of the core changes:
   :class:`JointGoals` marked ``reflex`` take joints over for
   ``locomotion.reflex_hold_s``, after which the leg blends back to its own trajectory.
   The leg alone decides its joints' goals, so a reflex never writes to the bus;
-* it **asks the coordinator** through a typed request message (to come, with the
-  layer: a step height, a stop, a gait);
+* it **asks the coordinator** through a typed request (:class:`ReflexRequest` on
+  ``reflex-requests``: a higher step, a halt, a heading correction, to sit down);
 * its thresholds and gains are its ``Params`` (validated, each with its source).
 
 docs/extending.md (a reflex plug-in) and docs/architecture.md, "Adding an actor" (any
@@ -34,10 +34,17 @@ May import: :mod:`whexar.actors.messages`, :mod:`whexar.config` and the layers b
 never another actor subsystem (the actors talk through messages), nor the test helpers.
 """
 
-from whexar.actors.reactive.layer import ACTIVITY, OVERRIDES, add_reflexes, parse_entries
+from whexar.actors.reactive.layer import (
+    ACTIVITY,
+    OVERRIDES,
+    REQUESTS,
+    add_reflexes,
+    parse_entries,
+)
 from whexar.actors.reactive.reflex import (
     ENTRY_POINTS,
     STREAMS,
+    Command,
     Reflex,
     ReflexParams,
     check_params,
@@ -49,7 +56,9 @@ __all__ = [
     "ACTIVITY",
     "ENTRY_POINTS",
     "OVERRIDES",
+    "REQUESTS",
     "STREAMS",
+    "Command",
     "Reflex",
     "ReflexActor",
     "ReflexParams",

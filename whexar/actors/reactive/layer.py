@@ -7,7 +7,8 @@ found, its parameters valid, its inputs published in the graph) and adds to the
 graph document, for each, an actor ``reflex-NAME`` running it
 (:class:`~whexar.actors.reactive.shell.ReflexActor`) with its inputs wired to
 the robot's channels, plus what they share: the ``overrides`` channel, wired to
-every leg's ``reflex`` input, and ``reflex-activity``. A reflex that keeps
+every leg's ``reflex`` input, ``reflex-requests``, wired to the coordinator's
+``requests`` input, and ``reflex-activity``. A reflex that keeps
 failing is disabled and the robot walks on (:data:`RESTART`).
 """
 
@@ -27,6 +28,9 @@ REFLEX_ACTOR: Final = "whexar.actors.reactive:ReflexActor"
 LEG_ACTOR: Final = "whexar.actors.locomotion:LegActor"
 OVERRIDES: Final = "overrides"
 """The channel of the reflexes' override goals, which every leg's ``reflex`` input reads."""
+REQUESTS: Final = "reflex-requests"
+"""The channel of the reflexes' requests, which the coordinator's ``requests`` input reads."""
+COORDINATOR: Final = "whexar.actors.locomotion:Coordinator"
 ACTIVITY: Final = "reflex-activity"
 """The channel of the reflexes' activity (who holds whom back)."""
 RESTART: Final[Mapping[str, Any]] = {
@@ -116,7 +120,7 @@ def add_reflexes(
                 "params": params,
                 "inputs": {port: STREAMS[port][1] for port in cls.inputs}
                 | {"activity_in": ACTIVITY},
-                "outputs": {"override": OVERRIDES, "activity": ACTIVITY},
+                "outputs": {"override": OVERRIDES, "request": REQUESTS, "activity": ACTIVITY},
                 "restart": dict(RESTART),
             }
         )
@@ -126,7 +130,10 @@ def add_reflexes(
         return
     actors.extend(added)
     channels.setdefault(OVERRIDES, {"message": "JointGoals", "policy": "queue"})
+    channels.setdefault(REQUESTS, {"message": "ReflexRequest", "policy": "queue"})
     channels.setdefault(ACTIVITY, {"message": "ReflexActivity", "policy": "queue"})
     for a in actors:
         if a.get("class") == LEG_ACTOR:
             a.setdefault("inputs", {}).setdefault("reflex", OVERRIDES)
+        elif a.get("class") == COORDINATOR:
+            a.setdefault("inputs", {}).setdefault("requests", REQUESTS)

@@ -16,7 +16,9 @@ A reflex is a plain class — its policy — deriving from :class:`Reflex`. It d
 
 and turns inputs into commands: :meth:`Reflex.react` is called with every message of
 its inputs, :meth:`Reflex.tick` every ``tick_s`` if it sets one; each returns the
-override goals to send (:meth:`Reflex.override` makes them). It sets :attr:`active`
+commands to send — override goals for a leg (:meth:`Reflex.override` makes them) or a
+request to the coordinator (:meth:`Reflex.request`: a higher step, a halt, a heading
+correction, to sit down). It sets :attr:`active`
 (and :attr:`reason`) while it acts. No ``await``, no channel, no clock read: its tests
 call it directly. The actor that runs it, one per reflex, is
 :class:`~whexar.actors.reactive.shell.ReflexActor`.
@@ -45,6 +47,7 @@ from whexar.actors.messages import (
     LegState,
     LocomotionState,
     ObstacleRanges,
+    ReflexRequest,
     ServoHealth,
     ServoStates,
     SwingEnded,
@@ -68,6 +71,10 @@ STREAMS: Final[Mapping[str, tuple[type[Message], str]]] = {
     "locomotion": (LocomotionState, "locomotion"),
 }
 """What a reflex may declare in ``inputs``: port → (message type, the robot graph's channel)."""
+
+
+Command = JointGoals | ReflexRequest
+"""What a reflex sends: override goals for the legs, or a request to the coordinator."""
 
 
 class ReflexParams(BaseModel):
@@ -102,12 +109,12 @@ class Reflex:
         self.reason = ""
         """Why it is active, in a few words (an event's text)."""
 
-    def react(self, t: float, msg: Message) -> Iterable[JointGoals]:
-        """A message of one of its inputs arrived at ``t``: the overrides to send."""
+    def react(self, t: float, msg: Message) -> Iterable[Command]:
+        """A message of one of its inputs arrived at ``t``: the commands to send."""
         return ()
 
-    def tick(self, t: float) -> Iterable[JointGoals]:
-        """Called every :attr:`tick_s`: the overrides to send."""
+    def tick(self, t: float) -> Iterable[Command]:
+        """Called every :attr:`tick_s`: the commands to send."""
         return ()
 
     def override(self, t: float, leg: int, angles: Mapping[int, float]) -> JointGoals:
@@ -118,6 +125,11 @@ class Reflex:
             for j, a in sorted(angles.items())
         )
         return JointGoals(t=t, source=self.name, goals=goals, reflex=True)
+
+    def request(self, t: float, **asked: Any) -> ReflexRequest:
+        """A request to the coordinator (:class:`ReflexRequest`'s fields: ``step_height_m``,
+        ``halt``, ``yaw_rate_rad_s``, ``sit_down``, ``reason``), stamped ``t``."""
+        return ReflexRequest(t=t, source=self.name, reflex=self.name, **asked)
 
 
 def resolve_reflex(kind: str) -> type[Reflex]:

@@ -9,7 +9,8 @@ an unknown parameter or a value out of range stops the run before it starts,
 naming the actor. At start it checks that every input the reflex declares is
 wired, then hands each message of each input to :meth:`Reflex.react` as it
 arrives (and calls :meth:`Reflex.tick` every ``tick_s``), stamps the overrides
-it returns with the reflex's priority and sends them to the legs.
+it returns with the reflex's priority and sends them to the legs, and its
+requests to the coordinator.
 
 Inhibition: every reflex publishes its changes of activity on
 ``reflex-activity`` and reads everyone's. While a reflex that names this one in
@@ -32,9 +33,10 @@ from typing import Any
 import anyio
 from pydantic import Field, model_validator
 
-from whexar.actors.messages import JointGoals, ReflexActivity
+from whexar.actors.messages import JointGoals, ReflexActivity, ReflexRequest
 from whexar.actors.reactive.reflex import (
     STREAMS,
+    Command,
     Reflex,
     check_params,
     inhibitions,
@@ -87,6 +89,8 @@ class ReflexActor(Actor):
     """Every reflex's activity: who holds whom back."""
     override = Output(JointGoals)
     """Override goals for the legs' ``reflex`` inputs."""
+    request = Output(ReflexRequest, optional=True)
+    """Requests to the coordinator's ``requests`` input."""
     activity = Output(ReflexActivity, optional=True)
 
     async def run(self) -> None:
@@ -152,14 +156,21 @@ class _Run:
                 self.holding.discard(msg.reflex)
             await self.report()
 
-    async def send(self, goals: Iterable[JointGoals]) -> None:
-        out = self.actor.override
-        for g in goals:
-            await out.send(
-                JointGoals(
-                    t=g.t, source=g.source, goals=g.goals, reflex=True, priority=self.priority
+    async def send(self, commands: Iterable[Command]) -> None:
+        for c in commands:
+            if isinstance(c, ReflexRequest):
+                if not self.actor.request.connected:
+                    raise RuntimeError(
+                        f"reflex {self.actor.name!r} asked the coordinator {c!r}, and its "
+                        "request output is not wired"
+                    )
+                await self.actor.request.send(c)
+            else:
+                await self.actor.override.send(
+                    JointGoals(
+                        t=c.t, source=c.source, goals=c.goals, reflex=True, priority=self.priority
+                    )
                 )
-            )
         await self.report()
 
     def _activity(self) -> ReflexActivity | None:

@@ -1,0 +1,67 @@
+"""What the reflexes ask of the coordinator, by reflex (:class:`ReflexRequest`).
+
+The operator's command is what the robot wants (:mod:`.intent`); the reflexes'
+requests bend it while they last: a step at least as high as the highest
+asked for (never above ``locomotion.max_step_height_mm``), the body held still
+while any reflex halts it, the turn rate corrected by the sum of the heading
+corrections while the body translates. Each reflex's request replaces its own
+earlier one, field by field, and is withdrawn the same way (0, ``False``), so
+two reflexes never undo each other. A plain class: the planner asks it.
+"""
+
+from __future__ import annotations
+
+import math
+
+from whexar.actors.messages import ReflexRequest, Vec3
+
+
+class Asks:
+    """The reflexes' standing requests (module docstring)."""
+
+    def __init__(self, max_step_height_m: float) -> None:
+        self.max_step_height_m = max_step_height_m
+        self.step_heights: dict[str, float] = {}
+        self.halts: dict[str, str] = {}
+        """reflex → why it halts the body."""
+        self.turns: dict[str, float] = {}
+        self.sit: tuple[str, str] | None = None
+        """(reflex, why) of the first request to sit down, once made."""
+
+    def take(self, req: ReflexRequest) -> bool:
+        """Merge one request; True if it asks to sit down for the first time."""
+        who = req.reflex
+        if req.step_height_m is not None and math.isfinite(req.step_height_m):
+            if req.step_height_m > 0.0:
+                self.step_heights[who] = req.step_height_m
+            else:
+                self.step_heights.pop(who, None)
+        if req.halt is not None:
+            if req.halt:
+                self.halts[who] = req.reason
+            else:
+                self.halts.pop(who, None)
+        if req.yaw_rate_rad_s is not None and math.isfinite(req.yaw_rate_rad_s):
+            if req.yaw_rate_rad_s != 0.0:
+                self.turns[who] = req.yaw_rate_rad_s
+            else:
+                self.turns.pop(who, None)
+        if req.sit_down and self.sit is None:
+            self.sit = (who, req.reason)
+            return True
+        return False
+
+    def twist(self, wanted: Vec3) -> Vec3:
+        """The twist to move toward: ``wanted`` halted or its turn corrected."""
+        if self.halts:
+            return (0.0, 0.0, 0.0)
+        vx, vy, w = wanted
+        if self.turns and (vx or vy):
+            w += sum(self.turns.values())
+        return (vx, vy, w)
+
+    def step_height(self, wanted: float) -> float:
+        """The step height to swing with: at least the highest asked, within the limit."""
+        if not self.step_heights:
+            return wanted
+        return min(max(wanted, *self.step_heights.values()), self.max_step_height_m)
