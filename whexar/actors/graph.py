@@ -26,7 +26,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, Final
 
-from whexar.actors.reactive import add_reflexes, parse_entries
+from whexar.actors.reactive import add_reflexes, merged, parse_entries
 from whexar.config import load_config
 from whexar.runtime.errors import UsageError
 from whexar.runtime.schema import read_toml
@@ -100,11 +100,13 @@ def robot_graph(
 
 def with_reflexes(doc: dict[str, Any], *, source: str, config: str | Path | None) -> None:
     """The graph document ``doc`` with its ``[[reflexes]]`` and the robot configuration's
-    (``config``'s) made into actors (:func:`~whexar.actors.reactive.add_reflexes`)."""
-    entries = parse_entries(doc.pop("reflexes"), "reflexes", source) if "reflexes" in doc else []
+    (``config``'s) made into actors (:func:`~whexar.actors.reactive.add_reflexes`); an
+    entry of the configuration replaces the graph's of the same name."""
+    graph = parse_entries(doc.pop("reflexes"), "reflexes", source) if "reflexes" in doc else []
+    own = []
     if config is not None:
-        cfg = load_config(config)
-        entries += [(f"{config}: reflexes[{i}]", e) for i, e in enumerate(cfg.reflexes)]
+        own = [(f"{config}: reflexes[{i}]", e) for i, e in enumerate(load_config(config).reflexes)]
+    entries = merged(graph, own)
     if entries:
         add_reflexes(doc, entries, source=source, config=str(config) if config else None)
 

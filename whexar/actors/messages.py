@@ -678,6 +678,24 @@ class SwingEnded(Message):
 
 
 @message
+class BatteryLow(Event):
+    """The line's voltage (the median of the servos' readings) stayed below
+    ``threshold_v``: ``stage`` is ``warning`` (low: plan to stop) or ``empty`` (the robot
+    sits down and shuts down, 5.3.1)."""
+
+    stage: str
+    voltage_v: float
+    threshold_v: float
+
+
+@message
+class BatteryRestored(Event):
+    """The line's voltage is back above the warning level (the supply was changed)."""
+
+    voltage_v: float
+
+
+@message
 class ReflexRequest(Message):
     """Reflex ``reflex`` asks the coordinator for something (its ``requests`` input); a
     field left ``None`` leaves that request of the reflex as it was.

@@ -80,6 +80,7 @@ SUMMARY_KEYS: Final = (
     "gait_changes",
     "falls",
     "sim_seconds",
+    "stopped_by",
     "wall_seconds",
     "realtime_factor",
     "state_hash",
@@ -217,6 +218,8 @@ def summary_text(name: str, summary: dict[str, Any]) -> str:
     for key in SUMMARY_KEYS:
         label = FIGURES[key][0]
         value = summary.get(key)
+        if key == "stopped_by" and value is None:
+            continue  # it ran its course: nothing to say
         shown = str(value) if key == "state_hash" else format_figure(key, value)
         lines.append(f"  {label:<{width}}{shown}")
     return "\n".join(lines)

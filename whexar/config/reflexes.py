@@ -21,8 +21,9 @@ class ReflexEntry(Section):
     """Its class: ``package.module:Class``, or its name in the ``whexar.reflexes`` entry
     points."""
     name: ReflexName | None = None
-    """Its name (events, activity, the overrides' source); absent: the class's name in
-    lower case."""
+    """Its name (events, activity, the overrides' source); absent: its entry point's name,
+    or its class's in lower case. An entry of the robot configuration replaces the
+    graph's entry of the same name (``enabled = false`` leaves that reflex out)."""
     priority: int | None = None
     """Its rank when reflexes give one joint goals in one cycle; absent: the class's."""
     inhibits: tuple[ReflexName, ...] = ()

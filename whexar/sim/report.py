@@ -337,6 +337,7 @@ FIGURES: Final = {
     "gait_changes": ("gait changes", "", "{}"),
     "falls": ("falls", "", "{}"),
     "sim_seconds": ("simulated time", "s", "{:.1f}"),
+    "stopped_by": ("stopped early by", "", "{}"),
     "wall_seconds": ("wall time", "s", "{:.1f}"),
     "realtime_factor": ("real-time factor", "×", "{:.2f}"),
     "state_hash": ("state hash", "", "`{:.16}…`"),
@@ -358,6 +359,8 @@ def summary_markdown(
     """``summary.md``: the figures and the segments as Markdown tables."""
     lines = [f"# {title}", "", "| figure | value |", "|---|---|"]
     for key, value in summary.items():
+        if key == "stopped_by" and value is None:
+            continue
         if key in FIGURES:
             lines.append(f"| {FIGURES[key][0]} | {format_figure(key, value)} |")
     lines += [

@@ -187,7 +187,9 @@ class SimResult:
         ``progress_along_m`` its part along :attr:`heading_rad` (how far it got);
         ``distance_m`` is the length of its path, sway included (:func:`travelled`);
         ``mean_speed_mps`` and ``cost_of_transport`` divide by the progress, so that a robot
-        treading in place is slow and costly, not flattered by its sway."""
+        treading in place is slow and costly, not flattered by its sway. ``sim_seconds`` is
+        how long it ran, and ``stopped_by`` why it stopped before its duration (the battery
+        reflex's shut-down), ``None`` when it ran its course."""
         if self._summary is None:
             self._summary = self._figures()
         return dict(self._summary)
@@ -210,6 +212,7 @@ class SimResult:
                 falls += 1
             fallen = tilted
         g = 9.81
+        ran = min(self.duration_s, self.run.end_time)  # a reflex may end the run early
         return {
             "progress_m": net,
             "progress_along_m": progress_along(s, self.heading_rad),
@@ -222,9 +225,10 @@ class SimResult:
             "min_stability_margin_m": min(margins) if margins else None,
             "gait_changes": sum(1 for c in changes if c.what == "gait"),
             "falls": falls,
-            "sim_seconds": self.duration_s,
+            "sim_seconds": ran,
+            "stopped_by": self.run.stop_reason if ran < self.duration_s - 1e-6 else None,
             "wall_seconds": self.wall_s,
-            "realtime_factor": self.duration_s / self.wall_s if self.wall_s > 0 else None,
+            "realtime_factor": ran / self.wall_s if self.wall_s > 0 else None,
             "state_hash": self.world.state_hash(),
             **self.world.supply_summary(),
         }

@@ -202,12 +202,21 @@ def test_an_entry_with_an_unknown_key_is_refused_by_name() -> None:
         entries({"type": "elevator"}, {"name": "x"})
 
 
-def test_a_disabled_entry_adds_nothing(plugins: ModuleType) -> None:
-    doc = robot_graph()
-    add_reflexes(
-        doc, entries({"type": "my_reflexes:ReachDown", "enabled": False}), source="my-walk.toml"
-    )
+def test_the_robot_runs_the_battery_reflex_and_its_configuration_can_retune_or_drop_it(
+    tmp_path: Path,
+) -> None:
+    (battery,) = [a for a in robot_graph()["actors"] if a["name"] == "reflex-battery"]
+    assert battery["params"] == {"reflex": "battery", "params": {}}
+    retuned = tmp_path / "retuned.toml"
+    retuned.write_text('[[reflexes]]\ntype = "battery"\nparams = { warn_v = 11.0 }\n')
+    (battery,) = [a for a in robot_graph(config=retuned)["actors"] if a["name"] == "reflex-battery"]
+    assert battery["params"]["params"] == {"warn_v": 11.0}
+    dropped = tmp_path / "dropped.toml"
+    dropped.write_text('[[reflexes]]\ntype = "battery"\nenabled = false\n')
+    doc = robot_graph(config=dropped)
+    assert not [a for a in doc["actors"] if a["name"].startswith("reflex-")]
     assert OVERRIDES not in doc["channels"]
+    build_graph(doc)
 
 
 def test_a_graph_file_and_the_robot_configuration_both_add_reflexes(

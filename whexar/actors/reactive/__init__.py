@@ -39,6 +39,8 @@ from whexar.actors.reactive.layer import (
     OVERRIDES,
     REQUESTS,
     add_reflexes,
+    entry_name,
+    merged,
     parse_entries,
 )
 from whexar.actors.reactive.reflex import (
@@ -47,6 +49,7 @@ from whexar.actors.reactive.reflex import (
     Command,
     Reflex,
     ReflexParams,
+    Shutdown,
     check_params,
     resolve_reflex,
 )
@@ -62,8 +65,11 @@ __all__ = [
     "Reflex",
     "ReflexActor",
     "ReflexParams",
+    "Shutdown",
     "add_reflexes",
     "check_params",
+    "entry_name",
+    "merged",
     "parse_entries",
     "resolve_reflex",
 ]

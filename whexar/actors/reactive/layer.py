@@ -61,6 +61,25 @@ def parse_entries(data: object, at: str, source: str) -> list[tuple[str, ReflexE
     return out
 
 
+def entry_name(entry: ReflexEntry) -> str:
+    """An entry's name: its ``name``, else its entry point's name or its class's, in lower
+    case (``battery``; ``my_pkg.reflexes:ReachDown`` → ``reachdown``)."""
+    if entry.name is not None:
+        return entry.name
+    return entry.type.rpartition(":")[2].lower()
+
+
+def merged(*layers: Sequence[tuple[str, ReflexEntry]]) -> list[tuple[str, ReflexEntry]]:
+    """The entries of several layers (the graph's, then the configuration's), a later
+    entry replacing an earlier one of the same name where it stood: the configuration can
+    retune a reflex of the graph, or leave it out with ``enabled = false``."""
+    out: dict[str, tuple[str, ReflexEntry]] = {}
+    for layer in layers:
+        for at, entry in layer:
+            out[entry_name(entry)] = (at, entry)
+    return list(out.values())
+
+
 def add_reflexes(
     doc: dict[str, Any],
     entries: Sequence[tuple[str, ReflexEntry]],
@@ -88,7 +107,7 @@ def add_reflexes(
             problems.append(Problem(f"{at}.type", entry.type, f"a reflex class: {exc}"))
             continue
         problems.extend(param_problems(cls, entry.params, f"{at}.params"))
-        name = entry.name or cls.__name__.lower()
+        name = entry_name(entry)
         actor = f"reflex-{name}"
         if actor in taken:
             problems.append(

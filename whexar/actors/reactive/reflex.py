@@ -16,9 +16,10 @@ A reflex is a plain class — its policy — deriving from :class:`Reflex`. It d
 
 and turns inputs into commands: :meth:`Reflex.react` is called with every message of
 its inputs, :meth:`Reflex.tick` every ``tick_s`` if it sets one; each returns the
-commands to send — override goals for a leg (:meth:`Reflex.override` makes them) or a
+commands to send — override goals for a leg (:meth:`Reflex.override` makes them), a
 request to the coordinator (:meth:`Reflex.request`: a higher step, a halt, a heading
-correction, to sit down). It sets :attr:`active`
+correction, to sit down), an event (a warning, on the runtime's event stream) or a
+:class:`Shutdown` (the run stops). It sets :attr:`active`
 (and :attr:`reason`) while it acts. No ``await``, no channel, no clock read: its tests
 call it directly. The actor that runs it, one per reflex, is
 :class:`~whexar.actors.reactive.shell.ReflexActor`.
@@ -34,7 +35,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Iterable, Mapping, Sequence
 from importlib.metadata import entry_points
-from typing import Any, ClassVar, Final
+from typing import Any, ClassVar, Final, NamedTuple
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
@@ -54,7 +55,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import RobotConfig
 from whexar.errors import MISSING, Problem
-from whexar.runtime.messages import Message
+from whexar.runtime.messages import Event, Message
 
 ENTRY_POINTS: Final = "whexar.reflexes"
 """The entry-point group a reflex package registers its reflexes in (name → class)."""
@@ -73,8 +74,16 @@ STREAMS: Final[Mapping[str, tuple[type[Message], str]]] = {
 """What a reflex may declare in ``inputs``: port → (message type, the robot graph's channel)."""
 
 
-Command = JointGoals | ReflexRequest
-"""What a reflex sends: override goals for the legs, or a request to the coordinator."""
+class Shutdown(NamedTuple):
+    """What a reflex returns to stop the run: the robot is at rest, the servos' torque goes
+    off (the battery reflex, once seated on an empty battery)."""
+
+    reason: str
+
+
+Command = JointGoals | ReflexRequest | Event | Shutdown
+"""What a reflex returns: override goals for the legs, a request to the coordinator, an
+event (a warning) or a :class:`Shutdown`."""
 
 
 class ReflexParams(BaseModel):

@@ -9,8 +9,9 @@ an unknown parameter or a value out of range stops the run before it starts,
 naming the actor. At start it checks that every input the reflex declares is
 wired, then hands each message of each input to :meth:`Reflex.react` as it
 arrives (and calls :meth:`Reflex.tick` every ``tick_s``), stamps the overrides
-it returns with the reflex's priority and sends them to the legs, and its
-requests to the coordinator.
+it returns with the reflex's priority and sends them to the legs, its
+requests to the coordinator and its events to the runtime's event stream; a
+:class:`~whexar.actors.reactive.reflex.Shutdown` stops the run.
 
 Inhibition: every reflex publishes its changes of activity on
 ``reflex-activity`` and reads everyone's. While a reflex that names this one in
@@ -38,6 +39,7 @@ from whexar.actors.reactive.reflex import (
     STREAMS,
     Command,
     Reflex,
+    Shutdown,
     check_params,
     inhibitions,
     resolve_reflex,
@@ -45,7 +47,7 @@ from whexar.actors.reactive.reflex import (
 from whexar.config import ConfigFile, RobotConfig, load_config
 from whexar.runtime.actor import Actor, ActorParams, Input, Output
 from whexar.runtime.channels import Inbox
-from whexar.runtime.messages import Message
+from whexar.runtime.messages import Event, Message
 
 
 class ReflexActor(Actor):
@@ -158,7 +160,11 @@ class _Run:
 
     async def send(self, commands: Iterable[Command]) -> None:
         for c in commands:
-            if isinstance(c, ReflexRequest):
+            if isinstance(c, Shutdown):
+                self.actor.request_stop(c.reason)
+            elif isinstance(c, Event):
+                self.actor.emit(c)
+            elif isinstance(c, ReflexRequest):
                 if not self.actor.request.connected:
                     raise RuntimeError(
                         f"reflex {self.actor.name!r} asked the coordinator {c!r}, and its "
