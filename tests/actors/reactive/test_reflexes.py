@@ -219,6 +219,19 @@ def test_the_robot_runs_the_battery_reflex_and_its_configuration_can_retune_or_d
     build_graph(doc)
 
 
+def test_a_reflex_that_reads_the_imus_samples_has_them_published(tmp_path: Path) -> None:
+    assert "imu" not in robot_graph()["channels"]  # nobody reads them: not published
+    config = tmp_path / "hold.toml"
+    config.write_text('[[reflexes]]\ntype = "heading-hold"\n')
+    doc = robot_graph(config=config)
+    (imu,) = [a for a in doc["actors"] if a["name"] == "imu"]
+    assert imu["outputs"]["samples"] == "imu"
+    assert doc["channels"]["imu"] == {"message": "ImuSample", "policy": "queue"}
+    (hold,) = [a for a in doc["actors"] if a["name"] == "reflex-heading-hold"]
+    assert hold["inputs"]["imu"] == "imu"
+    build_graph(doc)
+
+
 def test_a_graph_file_and_the_robot_configuration_both_add_reflexes(
     plugins: ModuleType, tmp_path: Path
 ) -> None:

@@ -19,7 +19,7 @@ from typing import Any, Final
 
 from pydantic import ValidationError
 
-from whexar.actors.reactive.reflex import STREAMS, param_problems, resolve_reflex
+from whexar.actors.reactive.reflex import PRODUCERS, STREAMS, param_problems, resolve_reflex
 from whexar.config import ReflexEntry
 from whexar.errors import ConfigError, Problem
 from whexar.runtime.schema import format_path, problem_from_error
@@ -116,6 +116,8 @@ def add_reflexes(
         taken.add(actor)
         for port in cls.inputs:
             channel = STREAMS[port][1]
+            if channel not in channels and port in PRODUCERS:
+                _publish(doc, port)
             if channel not in channels:
                 problems.append(
                     Problem(
@@ -156,3 +158,15 @@ def add_reflexes(
             a.setdefault("inputs", {}).setdefault("reflex", OVERRIDES)
         elif a.get("class") == COORDINATOR:
             a.setdefault("inputs", {}).setdefault("requests", REQUESTS)
+
+
+def _publish(doc: dict[str, Any], port: str) -> None:
+    """Wire the output that publishes stream ``port`` (:data:`PRODUCERS`), if its actor is in
+    the graph and leaves it unwired: a stream nobody read was not published."""
+    cls, output = PRODUCERS[port]
+    message, channel = STREAMS[port]
+    for a in doc.get("actors", []):
+        if a.get("class") == cls and output not in a.get("outputs", {}):
+            a.setdefault("outputs", {})[output] = channel
+            doc["channels"][channel] = {"message": message.__name__, "policy": "queue"}
+            return

@@ -6,7 +6,7 @@ A reflex is a plain class — its policy — deriving from :class:`Reflex`. It d
 
 * ``inputs``: the robot's streams it reads, by port name (:data:`STREAMS`: the legs'
   swing ends and states, the servo states and health, the force sensors, the ranges,
-  the tilt, the body motion, the locomotion state);
+  the tilt, the IMU's samples, the body motion, the locomotion state);
 * ``Params``: a pydantic model of its thresholds and gains (:class:`ReflexParams`:
   unknown keys refused, ranges checked), each with its source;
 * ``priority``: its rank when two reflexes give one joint a goal in one cycle (the
@@ -42,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,
+    ImuSample,
     JointGoal,
     JointGoals,
     LegLoads,
@@ -68,10 +69,16 @@ STREAMS: Final[Mapping[str, tuple[type[Message], str]]] = {
     "loads": (LegLoads, "loads"),
     "ranges": (ObstacleRanges, "ranges"),
     "tilt": (BodyTilt, "tilt"),
+    "imu": (ImuSample, "imu"),
     "motion": (BodyMotion, "motion"),
     "locomotion": (LocomotionState, "locomotion"),
 }
 """What a reflex may declare in ``inputs``: port → (message type, the robot graph's channel)."""
+PRODUCERS: Final[Mapping[str, tuple[str, str]]] = {
+    "imu": ("whexar.actors.sensing:ImuReader", "samples"),
+}
+"""Streams the robot's graph publishes only when a reflex reads them: port → (the actor
+class whose output it is, that output), wired by :func:`~.layer.add_reflexes`."""
 
 
 class Shutdown(NamedTuple):

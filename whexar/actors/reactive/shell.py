@@ -85,6 +85,7 @@ class ReflexActor(Actor):
     loads = Input(STREAMS["loads"][0], optional=True)
     ranges = Input(STREAMS["ranges"][0], optional=True)
     tilt = Input(STREAMS["tilt"][0], optional=True)
+    imu = Input(STREAMS["imu"][0], optional=True)
     motion = Input(STREAMS["motion"][0], optional=True)
     locomotion = Input(STREAMS["locomotion"][0], optional=True)
     activity_in = Input(ReflexActivity, optional=True)
