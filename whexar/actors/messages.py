@@ -700,7 +700,9 @@ class ReflexRequest(Message):
     """Reflex ``reflex`` asks the coordinator for something (its ``requests`` input); a
     field left ``None`` leaves that request of the reflex as it was.
 
-    * ``step_height_m``: swing at least this high (the elevator reflex, 6.7.2); 0 withdraws;
+    * ``step_height_m``: swing at least this high; 0 withdraws;
+    * ``step_raise_m``: swing this much higher than asked otherwise (the elevator reflex,
+      6.7.2); 0 withdraws;
     * ``halt``: hold the body still, feet down, until the reflex says ``False`` (the
       obstacle reflex's stop, 4.2.2);
     * ``yaw_rate_rad_s``: add this to the commanded turn rate while the body translates
@@ -713,6 +715,7 @@ class ReflexRequest(Message):
 
     reflex: str
     step_height_m: float | None = None
+    step_raise_m: float | None = None
     halt: bool | None = None
     yaw_rate_rad_s: float | None = None
     sit_down: bool = False

@@ -290,6 +290,25 @@ def test_the_step_is_as_high_as_the_highest_request_within_the_limit() -> None:
     }
 
 
+def test_a_raise_lifts_the_operators_step_within_the_limit() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    own = planner.want.step_height
+    said = drive(
+        planner,
+        legs,
+        t0,
+        t0 + 6.0,
+        {t0: cmd(vx_m_s=0.1)},
+        {t0 + 2.0: ask(step_raise_m=0.03), t0 + 4.0: ask(step_raise_m=0.0)},
+    )
+    swings = [(m.t, m.height_m) for m in said if isinstance(m, StepCommand) and m.kind == "swing"]
+    raised = {round(h, 6) for t, h in swings if t0 + 2.1 < t < t0 + 4.0}
+    after = {round(h, 6) for t, h in swings if t > t0 + 4.1}
+    assert raised == {round(own + 0.03, 6)}
+    assert after == {round(own, 6)}
+
+
 def test_a_heading_correction_turns_a_translating_body_only() -> None:
     planner, legs = standing()
     t0 = 3.0

@@ -2,7 +2,8 @@
 
 The operator's command is what the robot wants (:mod:`.intent`); the reflexes'
 requests bend it while they last: a step at least as high as the highest
-asked for (never above ``locomotion.max_step_height_mm``), the body held still
+asked for, raised by the largest raise asked (never above
+``locomotion.max_step_height_mm``), the body held still
 while any reflex halts it, the turn rate corrected by the sum of the heading
 corrections while the body translates. Each reflex's request replaces its own
 earlier one, field by field, and is withdrawn the same way (0, ``False``), so
@@ -22,6 +23,7 @@ class Asks:
     def __init__(self, max_step_height_m: float) -> None:
         self.max_step_height_m = max_step_height_m
         self.step_heights: dict[str, float] = {}
+        self.raises: dict[str, float] = {}
         self.halts: dict[str, str] = {}
         """reflex → why it halts the body."""
         self.turns: dict[str, float] = {}
@@ -36,6 +38,11 @@ class Asks:
                 self.step_heights[who] = req.step_height_m
             else:
                 self.step_heights.pop(who, None)
+        if req.step_raise_m is not None and math.isfinite(req.step_raise_m):
+            if req.step_raise_m > 0.0:
+                self.raises[who] = req.step_raise_m
+            else:
+                self.raises.pop(who, None)
         if req.halt is not None:
             if req.halt:
                 self.halts[who] = req.reason
@@ -61,7 +68,9 @@ class Asks:
         return (vx, vy, w)
 
     def step_height(self, wanted: float) -> float:
-        """The step height to swing with: at least the highest asked, within the limit."""
-        if not self.step_heights:
+        """The step height to swing with: at least the highest asked, raised by the largest
+        raise asked, within the limit."""
+        if not self.step_heights and not self.raises:
             return wanted
-        return min(max(wanted, *self.step_heights.values()), self.max_step_height_m)
+        base = max([wanted, *self.step_heights.values()])
+        return min(base + max(self.raises.values(), default=0.0), self.max_step_height_m)
