@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any, Final
 
 from whexar.actors.reactive import add_reflexes, merged, parse_entries
+from whexar.actors.reactive.layer import REFLEX_ACTOR
 from whexar.config import load_config
 from whexar.runtime.errors import UsageError
 from whexar.runtime.schema import read_toml
@@ -73,8 +74,9 @@ def robot_graph(
     other parameter: actor name (a shell pattern such as ``leg-*``) → {param:
     value}. ``feeds`` names channels a harness or a replay publishes itself:
     an actor whose outputs all go to fed channels is left out, like each
-    actor of ``leave_out``; a channel left with no publisher is unwired from
-    its subscribers (their inputs must be optional, or the wiring says so).
+    actor of ``leave_out`` and each reflex whose inputs nobody publishes any
+    more; a channel left with no publisher is unwired from its subscribers
+    (their inputs must be optional, or the wiring says so).
     """
     source = str(path)
     doc = _read(Path(path))
@@ -121,6 +123,14 @@ def _leave_out(doc: dict[str, Any], names: set[str], feeds: set[str], source: st
         if actor["name"] in names or (outputs and outputs <= feeds):
             continue
         kept.append(actor)
+    published = {ch for a in kept for ch in a.get("outputs", {}).values()} | feeds
+    # A reflex whose inputs are no longer published cannot do its work: it goes too.
+    kept = [
+        a
+        for a in kept
+        if a.get("class") != REFLEX_ACTOR
+        or all(ch in published for p, ch in a.get("inputs", {}).items() if p != "activity_in")
+    ]
     doc["actors"] = kept
     published = {ch for a in kept for ch in a.get("outputs", {}).values()} | feeds
     for actor in kept:

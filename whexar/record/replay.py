@@ -51,6 +51,7 @@ from typing import TYPE_CHECKING, Any, Final, Literal, TypeVar
 
 import anyio
 
+from whexar.actors.graph import with_reflexes
 from whexar.bus.emulator.chain import SERVO_CHAIN
 from whexar.bus.field import FieldBus
 from whexar.bus.replay import REPLAYED_BUS, BusReplay
@@ -268,6 +269,8 @@ def _replay_graph(
     On a log of a real clock the bus scheduler opens the recorded servos by time, an
     emulated chain (``emulator:NAME``)."""
     graph = json.loads(json.dumps(wiring))  # a deep copy
+    if "reflexes" in graph:  # a wiring file as written: its [[reflexes]] become actors
+        with_reflexes(graph, source="the recorded wiring", config=config)
     actors = []
     owners: dict[str, str] = {}
     aliases: dict[str, str] = {}

@@ -219,6 +219,12 @@ def test_the_robot_runs_the_battery_reflex_and_its_configuration_can_retune_or_d
     build_graph(doc)
 
 
+def test_a_reflex_whose_inputs_a_trimmed_graph_no_longer_publishes_is_left_out() -> None:
+    doc = robot_graph(leave_out=("bus",), feeds=["servo-state"])  # no servo health
+    assert "reflex-battery" not in [a["name"] for a in doc["actors"]]
+    build_graph(doc, external={"servo-state": "test"})
+
+
 def test_a_reflex_that_reads_the_imus_samples_has_them_published(tmp_path: Path) -> None:
     assert "imu" not in robot_graph()["channels"]  # nobody reads them: not published
     config = tmp_path / "hold.toml"
