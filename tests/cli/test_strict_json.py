@@ -34,6 +34,7 @@ from whexar.bench import fieldbus as fieldbus_bench
 from whexar.bench import kin as kin_bench
 from whexar.bench import median_seconds
 from whexar.bench import record as record_bench
+from whexar.bench import reflex as reflex_bench
 from whexar.bench import replay as replay_bench
 from whexar.bench import robot as robot_bench
 from whexar.bench import runtime as runtime_bench
@@ -421,6 +422,19 @@ def test_bench_campaign(
 def test_bench_robot(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setattr(robot_bench, "run", functools.partial(robot_bench.run, seconds=0.5))
     run_json(["bench", "robot", "--json"], capsys)
+
+
+@covers("bench", "reflex")
+@pytest.mark.slow
+def test_bench_reflex(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.setattr(
+        reflex_bench, "run", functools.partial(reflex_bench.run, repeats=1, end_s=8.0)
+    )
+    _, figures = run_json(["bench", "reflex", "--json"], capsys)
+    # On virtual time the latency is the graph's, not the machine's: one cycle.
+    assert 0.5 < figures["latency_cycles_p99"] < 1.1  # the next write, not the one after
+    assert figures["latency_from_reading_cycles_p99"] > 1.5
+    assert figures["policies_ms_per_cycle"] > 0.0
 
 
 @covers("doctor")

@@ -34,6 +34,7 @@ SUITES: dict[str, str] = {
     "fieldbus": "a field log's servo bus played back by time: replay speed, cost per transaction",
     "campaign": "a campaign on 2 workers against 1; what Ray adds to a run",
     "robot": "the whole controller on real time, bus over a pty: share of a core, CPU per cycle",
+    "reflex": "a reflex's latency from its stimulus to the wire; the reactive layer's CPU",
 }
 """The suites, each a module of :mod:`whexar.bench` with a ``run(progress)``."""
 

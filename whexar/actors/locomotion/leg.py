@@ -4,19 +4,26 @@ Theory of operation
 -------------------
 The actor wakes on every :class:`ServoStates` (one per bus cycle), takes what
 its other inputs hold — the coordinator's steps and newest body motion, the
-force sensors, override goals — hands it all to its
+force sensors — hands it all to its
 :class:`~whexar.actors.locomotion.leg_controller.LegController` with the
 clock's time, and publishes what the controller returns, in its order:
 events on the events channel, :class:`SwingEnded` on ``swings``,
 :class:`JointGoals` on ``goals``, :class:`LegState` on ``state``. The policy
 — steps, swing, IK, wheel, contact, overrides — is the controller's, and is
 told in its module.
+
+Override goals are the exception to the rhythm: they are handed to the
+controller as they arrive (:meth:`LegController.take_overrides`), and the goals
+of the joints they take are sent at once, so that the bus writes them at its
+next cycle — a reflex's answer reaches the wire one cycle after its stimulus,
+not two (``whexar bench reflex``).
 """
 
 from __future__ import annotations
 
 from typing import ClassVar
 
+import anyio
 from pydantic import field_validator
 
 from whexar.actors.locomotion.leg_controller import LegController
@@ -69,27 +76,45 @@ class LegActor(Actor):
     async def run(self) -> None:
         p = self.params
         cfg = load_config(p.config) if p.config else RobotConfig()
-        state_out = self.state if self.state.connected else None
-        swings_out = self.swings if self.swings.connected else None
         leg = self.controller(
-            cfg, leg_index(p.leg), name=self.name, contact=p.contact, report=state_out is not None
+            cfg,
+            leg_index(p.leg),
+            name=self.name,
+            contact=p.contact,
+            report=self.state.connected,
         )
+        reflex_in = self.reflex if self.reflex.connected else None
+        self.ready()
+        if reflex_in is None:
+            await self._cycles(leg)
+            return
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(self._cycles, leg)
+            # Overrides are taken as they come and their goals sent at once: the bus writes
+            # them at its next cycle, not after the leg's next one (whexar bench reflex).
+            now, goals_out = self.now, self.goals
+            async for first in reflex_in:
+                goals = leg.take_overrides(now(), [first, *reflex_in.drain()])
+                if goals is not None:
+                    await goals_out.send(goals)
+
+    async def _cycles(self, leg: LegController) -> None:
+        """One cycle per servo reading: the leg's goals, state, swing ends and events."""
         # Looked up once, not every cycle: a port attribute is a descriptor and a mapping
         # lookup. An optional input the wiring left unconnected is None here.
+        now, emit = self.now, self.emit
         steps_in = self.steps if self.steps.connected else None
         motion_in = self.motion if self.motion.connected else None
         loads_in = self.loads if self.loads.connected else None
-        reflex_in = self.reflex if self.reflex.connected else None
         goals_out = self.goals
-        now, emit = self.now, self.emit
-        self.ready()
+        state_out = self.state if self.state.connected else None
+        swings_out = self.swings if self.swings.connected else None
         async for states in self.servo_state:
             out = leg.cycle(
                 now(),
                 states,
                 motion=motion_in.latest() if motion_in is not None else None,
                 loads=loads_in.latest() if loads_in is not None else None,
-                overrides=reflex_in.drain() if reflex_in is not None else (),
                 steps=steps_in.drain() if steps_in is not None else (),
             )
             for msg in out:

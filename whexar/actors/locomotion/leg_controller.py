@@ -353,6 +353,24 @@ class LegController:
             goals.append(JointGoal(t=t, source=name, leg=leg, joint=_WHEEL, velocity_rad_s=rate))
         return JointGoals(t=t, source=name, goals=tuple(goals)) if goals else None
 
+    def take_overrides(self, now: float, overrides: Iterable[JointGoals]) -> JointGoals | None:
+        """Override goals that arrive between two cycles, taken at once (the priority
+        decides, as in a cycle): the goals of the joints they now hold, to send the bus
+        straight away — it writes them at its next cycle, not one cycle later. ``None``:
+        nothing new for the bus (or the leg not yet placed)."""
+        self._take_overrides(now, overrides)
+        if self.foot is None or self.angles is None:
+            return None
+        last, name, leg = self.sent, self.name, self.leg
+        goals = []
+        for joint, (angle, _, _) in sorted(self.overrides.items()):
+            if abs(angle - last[joint]) >= HALF_TICK_RAD:
+                last[joint] = angle
+                goals.append(
+                    JointGoal(t=now, source=name, leg=leg, joint=joint, position_rad=angle)
+                )
+        return JointGoals(t=now, source=name, goals=tuple(goals)) if goals else None
+
     def _apply_overrides(self, t: float, angles: list[float]) -> tuple[list[float], bool]:
         """The override-held joints, and the blend back from them (module docstring);
         True while an override holds a joint."""
