@@ -32,6 +32,7 @@ from whexar.sim.run import Sample, SimResult, simulate
 from whexar.sim.series import RunSeries
 from whexar.sim.world import SimWorld
 from whexar.testing import LogEntry, MessageLog, RunResult
+from whexar.testing.reflexes import locomotion_state
 from whexar.testing.walk import command
 
 FAIL_AT = 8.0
@@ -41,19 +42,7 @@ HEIGHT = 0.28
 
 
 def _state(t: float, activity: str) -> LocomotionState:
-    return LocomotionState(
-        t=t,
-        source="coordinator",
-        activity=activity,
-        mode="walk",
-        gait="tripod",
-        stance="normal",
-        twist=(0.0, 0.0, 0.0),
-        gait_phase=0.0,
-        swing_legs=(),
-        margin_m=0.1,
-        upside_down=False,
-    )
+    return locomotion_state(t, activity, stance="normal")
 
 
 def _fake(

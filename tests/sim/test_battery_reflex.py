@@ -48,6 +48,6 @@ def test_a_discharging_battery_warns_then_sits_the_robot_down_and_shuts_it_down(
 
 
 def test_on_the_bench_supply_the_battery_reflex_never_fires() -> None:
-    result = load_scenario("tripod").with_overrides(duration_s=12.0).run()
+    result = load_scenario("tripod").with_overrides(duration_s=6.0).run()
     assert not [e for e in result.events if isinstance(e, BatteryLow)]
     assert result.summary()["stopped_by"] is None

@@ -19,7 +19,8 @@ that ignores the stop), ``Brake``, which stands for the servos in a safe
 stop, and ``RealIO``, which waits on real I/O. One module per device adds
 its graph and helpers: :mod:`~whexar.testing.bus` (the robot's emulated
 servos, a goal source), :mod:`~whexar.testing.sensors`,
-:mod:`~whexar.testing.imu`; :mod:`~whexar.testing.thesis` holds reference
+:mod:`~whexar.testing.imu`; :mod:`~whexar.testing.reflexes` makes the messages
+a reflex's policy reads; :mod:`~whexar.testing.thesis` holds reference
 values of the thesis. The emulators themselves belong to their device
 packages (:mod:`whexar.bus.emulator`, :mod:`whexar.sensors.board_emulator`,
 :mod:`whexar.sensors.imu_emulator`): the actors open them by name.

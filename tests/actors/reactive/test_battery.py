@@ -16,6 +16,7 @@ from whexar.actors.messages import (
 from whexar.actors.reactive import Command, Shutdown, check_params
 from whexar.actors.reactive.battery import Battery, Stage
 from whexar.config import RobotConfig
+from whexar.testing.reflexes import locomotion_state
 
 SERVOS = range(1, 43)
 
@@ -40,19 +41,7 @@ def feed(b: Battery, t0: float, t1: float, volts: float, *, every_s: float = 0.2
 
 
 def seated(t: float) -> LocomotionState:
-    return LocomotionState(
-        t=t,
-        source="coordinator",
-        activity="seated",
-        mode="walk",
-        gait="tripod",
-        stance="default",
-        twist=(0.0, 0.0, 0.0),
-        gait_phase=0.0,
-        swing_legs=(),
-        margin_m=0.1,
-        upside_down=False,
-    )
+    return locomotion_state(t, "seated")
 
 
 def test_a_full_battery_says_nothing() -> None:

@@ -11,6 +11,7 @@ from whexar.actors.messages import ImuSample, LocomotionState, ReflexRequest
 from whexar.actors.reactive import check_params
 from whexar.actors.reactive.heading import HeadingHold
 from whexar.config import RobotConfig
+from whexar.testing.reflexes import locomotion_state
 
 DT = 0.02  # the IMU at 50 Hz
 
@@ -22,19 +23,7 @@ def hold(**params: object) -> HeadingHold:
 
 
 def state(t: float, activity: str, vx: float = 0.0, w: float = 0.0) -> LocomotionState:
-    return LocomotionState(
-        t=t,
-        source="coordinator",
-        activity=activity,
-        mode="walk",
-        gait="tripod",
-        stance="default",
-        twist=(vx, 0.0, w),
-        gait_phase=0.0,
-        swing_legs=(),
-        margin_m=0.1,
-        upside_down=False,
-    )
+    return locomotion_state(t, activity, twist=(vx, 0.0, w))
 
 
 def sample(t: float, yaw_dps: float) -> ImuSample:
