@@ -44,9 +44,11 @@ firmware:
 # The inner loop, in under a minute: ruff, the import contracts, mypy, and the tests not
 # marked slow (pyproject.toml: campaigns, Ray, Valgrind, simavr, long simulations,
 # rendering, subprocesses, ptys and real time). None of them needs the firmware's build
-# or the OpenGL libraries.
+# or the OpenGL libraries. They run on two workers (pytest-xdist): none waits on real
+# time, so they share the machine safely; the slow ones below run one at a time, as ptys,
+# signals and real-time runs need.
 check: lint typecheck
-	$(BIN)/pytest -q -m "not slow"
+	$(BIN)/pytest -q -m "not slow" -n 2
 
 # Everything: the inner loop, then the firmware and the slow tests (which use its build
 # and the OpenGL libraries): every test once.

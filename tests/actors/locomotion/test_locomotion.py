@@ -875,7 +875,8 @@ def test_reflex_takes_the_joint_and_hands_it_back_smoothly() -> None:
     """An override goal for RF's femur: the leg alone decides its joints' goals. It holds
     the override's angle and reports the phase "reflex" while the goal holds
     (``reflex_hold_s`` from its time), then blends back to its own trajectory without a jump.
-    The bus gets one goal message per leg and cycle, never a reflex one, each goal once."""
+    The bus gets one goal message per leg and cycle — and the override's joint the moment
+    it arrives — never a reflex one, each goal once."""
     r = reflex()
     assert faults(r) == []
     release = REFLEX_T + LOCO.reflex_hold_s
@@ -898,12 +899,15 @@ def test_reflex_takes_the_joint_and_hands_it_back_smoothly() -> None:
         for g in m.goals
         if g.joint == FEMUR and taken <= m.t <= release
     ]
-    assert femur_said == [(taken, REFLEX_FEMUR)]  # said once; the bus keeps it
+    # Said once, as the override arrived (not at the leg's next cycle); the bus keeps it.
+    assert femur_said == [(REFLEX_T, REFLEX_FEMUR)]
     goals = leg_goals(r)
     femur = [(t, goal(goals[t][0], FEMUR).position_rad) for t in sorted(goals)]
-    assert all(a == REFLEX_FEMUR for t, a in femur if taken <= t <= release)
+    # In force from its arrival (the cycle that reports it is stamped with its read time,
+    # a little before).
+    assert all(a == REFLEX_FEMUR for t, a in femur if REFLEX_T <= t <= release)
     # Handed back without a jump, then on the trajectory (the IK of the commanded foot).
-    released = [a for t, a in femur if t >= taken]
+    released = [a for t, a in femur if t >= REFLEX_T]
     assert float(np.abs(np.diff(np.array(released, dtype=float))).max()) < 0.03
     trajectory = [
         (t, a, trajectory_femur(legs[t][0]))
