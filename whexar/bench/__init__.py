@@ -11,6 +11,7 @@ command line.
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 from collections.abc import Callable
@@ -18,6 +19,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 Progress = Callable[[str], None] | None
+
+
+def percentile(values: list[float], q: float) -> float:
+    """The nearest-rank ``q`` quantile of ``values`` (0 < q ≤ 1): a value measured."""
+    ordered = sorted(values)
+    k = max(0, min(len(ordered) - 1, math.ceil(q * len(ordered)) - 1))
+    return ordered[k]
 
 
 def median_seconds(fn: Callable[[], object], repeats: int, *, warmup: int = 20) -> float:

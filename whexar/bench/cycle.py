@@ -69,7 +69,7 @@ from whexar.actors.messages import (
     MotionCommand,
     ServoStates,
 )
-from whexar.bench import Figure, Progress, Report
+from whexar.bench import Figure, Progress, Report, percentile
 from whexar.config import RobotConfig
 from whexar.robot import N_JOINTS, N_LEGS
 from whexar.runtime.clock import run as run_loop
@@ -246,12 +246,6 @@ class EngineFigures:
     """Median window of the timed run (legs + coordinator + the rest), less the idle share."""
 
 
-def _percentile(values: list[float], q: float) -> float:
-    ordered = sorted(values)
-    k = max(0, min(len(ordered) - 1, math.ceil(q * len(ordered)) - 1))
-    return ordered[k]
-
-
 def _rounded(value: object) -> object:
     if isinstance(value, float):
         return round(value, 4)
@@ -381,7 +375,7 @@ def figures(engine: Engine, runs: list[Samples], timed: Samples | None = None) -
         idle = statistics.median(samples.idle)
         net = [(w - idle) / 1e6 for w in samples.window]
         medians.append(statistics.median(net))
-        p99s.append(_percentile(net, 0.99))
+        p99s.append(percentile(net, 0.99))
         idles.append(idle / 1e6)
         pooled += net
     extra: dict[str, float] = {}

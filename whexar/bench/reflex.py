@@ -50,7 +50,7 @@ from whexar.actors.reactive.battery import Battery
 from whexar.actors.reactive.elevator import Elevator
 from whexar.actors.reactive.heading import HeadingHold
 from whexar.actors.reactive.layer import REFLEX_ACTOR
-from whexar.bench import Figure, Progress, Report
+from whexar.bench import Figure, Progress, Report, percentile
 from whexar.bus import control_table as ct
 from whexar.bus.protocol import Instruction, PacketDecoder, parse_sync_write_params
 from whexar.runtime.harness import Harness, run_actors
@@ -247,12 +247,6 @@ def latencies(w: Watch, end_s: float = END_S) -> tuple[list[float], list[float],
     return published, read, period
 
 
-def _percentile(values: list[float], q: float) -> float:
-    ordered = sorted(values)
-    k = max(0, min(len(ordered) - 1, round(q * (len(ordered) - 1))))
-    return ordered[k]
-
-
 def run(progress: Progress = None, *, repeats: int = REPEATS, end_s: float = END_S) -> Report:
     """Measure the latency and the reactive layer's CPU (module docstring); ``repeats`` runs
     of each kind, each measured from :data:`START_S` to ``end_s``."""
@@ -264,8 +258,8 @@ def run(progress: Progress = None, *, repeats: int = REPEATS, end_s: float = END
     if not lat:
         raise RuntimeError("no swing end reached the wire: the bench measured nothing")
     in_cycles = [x / period for x in lat]
-    p50, p99 = _percentile(in_cycles, 0.5), _percentile(in_cycles, 0.99)
-    read_p99 = _percentile([x / period for x in from_read], 0.99)
+    p50, p99 = percentile(in_cycles, 0.5), percentile(in_cycles, 0.99)
+    read_p99 = percentile([x / period for x in from_read], 0.99)
     with_ms: list[float] = []
     without_ms: list[float] = []
     for k in range(repeats):
