@@ -422,6 +422,27 @@ class AccelPlausible(Event):
     withheld: int
 
 
+# --------------------------------------------------------------------------- the world
+# Physical faults of the simulated world (whexar.sim.faults): what happens to the robot,
+# not to a device's link. Said by the simulation when one begins and when it ends, so a
+# recording and a test see when the world pushed, slipped, went limp or snagged.
+
+
+@message
+class WorldFault(Event):
+    """A physical fault of the simulated world began (``active``) or ended.
+
+    ``kind``: ``push`` (a force on the body), ``slippery`` (the ground's friction
+    changed under an area or a foot), ``limp`` (a servo lost power: no torque, no
+    reply), ``snag`` (a joint blocked); ``target`` names where (the body, an area, a
+    leg, a servo); ``detail`` the amounts, in words."""
+
+    kind: str
+    target: str
+    detail: str
+    active: bool
+
+
 # --------------------------------------------------------------------------- command sources
 # The gamepad's link (whexar.actors.commands): ``link`` is its device, a path
 # (/dev/input/event0) or an in-process pad (pipe:NAME).
