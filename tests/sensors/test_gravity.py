@@ -67,3 +67,30 @@ def test_tolerance_must_stay_below_1_g() -> None:
     for bad in (0.0, 1.0, -0.1, math.nan):
         with pytest.raises(UsageError, match="tolerance_g"):
             GravityCheck(bad)
+
+
+def test_a_short_run_withholds_the_tilt_and_says_nothing() -> None:
+    # A footfall's shock: 0.02-0.1 s out of the band (docs/robot.md); the hold-off is 0.25 s.
+    check = GravityCheck(0.2, hold_s=0.25)
+    shock = [check.check((0.0, 0.0, 1.5), t) for t in (1.00, 1.02, 1.04, 1.06, 1.08, 1.10)]
+    assert [v.tilt for v in shock] == [None] * 6
+    assert [v.change for v in shock] == [None] * 6
+    after = check.check((0.0, 0.0, 1.0), 1.12)
+    assert (after.change, after.withheld, after.tilt) == (None, 0, (0.0, 0.0))
+
+
+def test_a_lasting_run_is_said_once_the_hold_off_has_passed() -> None:
+    check = GravityCheck(0.2, hold_s=0.25)
+    times = [2.0 + 0.02 * k for k in range(20)]
+    changes = [check.check((0.0, 0.0, 0.0), t).change for t in times]
+    first = changes.index("implausible")
+    assert times[first] - times[0] == pytest.approx(0.26)  # the first reading ≥ 0.25 s in
+    assert changes.count("implausible") == 1
+    back = check.check((0.0, 0.0, 1.0), 2.5)
+    assert (back.change, back.withheld) == ("plausible", 20)
+
+
+def test_the_hold_off_must_be_a_time() -> None:
+    for bad in (-0.1, math.nan, math.inf):
+        with pytest.raises(UsageError, match="hold_s"):
+            GravityCheck(0.2, hold_s=bad)

@@ -93,7 +93,8 @@ def test_cli_prints_frames_and_events_as_json(
     board = Board(tmp_path / "ttyBOARD")
     board.plug()
     config = tmp_path / "robot.toml"
-    config.write_text("[sensor_board.accelerometer]\nfitted = true\n")
+    # No hold-off: the one frame at 0 V is said at once.
+    config.write_text("[sensor_board.accelerometer]\nfitted = true\nimplausible_hold_s = 0.0\n")
 
     def write() -> None:
         time.sleep(0.3)

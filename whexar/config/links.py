@@ -3,7 +3,7 @@ the IMU (5.3, 5.4)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Final, Literal
 
 from pydantic import (
     AfterValidator,
@@ -108,6 +108,12 @@ BoardBaudrate = Annotated[int, AfterValidator(board_baudrate)]
 GravityTolerance = Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)]
 """How far from 1 g an accelerometer reading may be and still give a tilt (under 1 g, or
 free fall would pass); :mod:`whexar.sensors.gravity` explains the default."""
+GravityHold = Annotated[float, Field(ge=0, le=10, allow_inf_nan=False)]
+"""How long (s) readings must stay implausible before the reader says so
+(:mod:`whexar.sensors.gravity`, "Hold-off"); 0: at the first one."""
+GRAVITY_HOLD_S: Final = 0.25
+"""The default hold-off: 2.5× the longest run of implausible readings a footfall gave in
+the simulated course (0.1 s; docs/robot.md, "The accelerometer's hold-off")."""
 
 
 class AccelerometerSpec(Section):
@@ -130,6 +136,8 @@ class AccelerometerSpec(Section):
     counts_per_g: tuple[Positive, Positive, Positive] = (67.5, 67.5, 67.5)
     gravity_tolerance_g: GravityTolerance = GRAVITY_TOLERANCE_G
     """A reading whose magnitude is further than this from 1 g gives no tilt."""
+    implausible_hold_s: GravityHold = GRAVITY_HOLD_S
+    """Readings implausible for this long are said to be (:class:`AccelImplausible`)."""
 
 
 class SensorBoardSpec(Section):
@@ -247,6 +255,8 @@ class ImuSpec(Section):
     """The IMU link is stale when no sample was read for this long."""
     gravity_tolerance_g: GravityTolerance = GRAVITY_TOLERANCE_G
     """A sample whose acceleration is further than this from 1 g gives no tilt."""
+    implausible_hold_s: GravityHold = GRAVITY_HOLD_S
+    """Samples implausible for this long are said to be (:class:`AccelImplausible`)."""
     accel_offset_g: tuple[AccelOffset, AccelOffset, AccelOffset] = (0.0, 0.0, 0.0)
     """This chip's zero-g level per axis, in its own axes, subtracted from every
     sample: what X and Y read with the robot still on level ground, and Z less 1 g.

@@ -31,7 +31,15 @@ the gyroscope could.
 :class:`GravityCheck` applies the rule to a stream of readings and says when
 it *changes*, so that a reader reports one event when its readings become
 implausible and one when they are plausible again, not one per sample. It is
-sans-IO: values in, a verdict out, no clock.
+sans-IO: values and their times in, a verdict out, no clock.
+
+*Hold-off.* Every implausible reading withholds its tilt at once, but the
+change is said only once the readings have stayed implausible for ``hold_s``:
+a walking robot's accelerometer leaves the 1 g band for a sample or a few at
+every footfall (the shock of a foot landing), and a warning per footfall would
+drown the one that means trouble. A failure — a sensor unplugged, not fitted,
+a robot falling over — lasts; a footfall does not (docs/robot.md, "The
+accelerometer's hold-off", gives the measured runs).
 """
 
 from __future__ import annotations
@@ -81,33 +89,43 @@ class GravityVerdict:
 
 
 class GravityCheck:
-    """Tilt from a stream of accelerometer readings, withheld while they are not gravity."""
+    """Tilt from a stream of accelerometer readings, withheld while they are not gravity;
+    a change said once it has held for ``hold_s`` (module docstring; 0: at once)."""
 
-    __slots__ = ("implausible", "tolerance_g", "withheld")
+    __slots__ = ("hold_s", "implausible", "since", "tolerance_g", "withheld")
 
-    def __init__(self, tolerance_g: float = GRAVITY_TOLERANCE_G) -> None:
+    def __init__(self, tolerance_g: float = GRAVITY_TOLERANCE_G, hold_s: float = 0.0) -> None:
         if not 0.0 < tolerance_g < 1.0:
             raise UsageError(
                 f"tolerance_g = {tolerance_g!r}: must lie in (0, 1) g "
                 "(1 g or more would accept free fall)"
             )
+        if not (math.isfinite(hold_s) and hold_s >= 0.0):
+            raise UsageError(f"hold_s = {hold_s!r}: must be a number of seconds ≥ 0")
         self.tolerance_g = tolerance_g
+        self.hold_s = hold_s
         self.implausible = False
-        """The last reading was implausible."""
+        """Implausible readings have been said (they held for ``hold_s``)."""
+        self.since: float | None = None
+        """Time of the first implausible reading of the present run, if one is under way."""
         self.withheld = 0
 
-    def check(self, accel_g: Vector) -> GravityVerdict:
-        """The tilt of ``accel_g``, or why there is none; see :class:`GravityVerdict`."""
+    def check(self, accel_g: Vector, t: float = 0.0) -> GravityVerdict:
+        """The tilt of ``accel_g``, read at ``t`` (s), or why there is none; see
+        :class:`GravityVerdict`."""
         size = magnitude_g(accel_g)
         if abs(size - 1.0) <= self.tolerance_g:
             # Finite and near 1 g, so never the zero vector eq. 5.6-5.7 refuse.
             tilt = tilt_from_acceleration(*accel_g)
-            if self.implausible:
-                withheld, self.implausible, self.withheld = self.withheld, False, 0
+            withheld, said = self.withheld, self.implausible
+            self.implausible, self.withheld, self.since = False, 0, None
+            if said:
                 return GravityVerdict(tilt, size, "plausible", withheld)
             return GravityVerdict(tilt, size)
         self.withheld += 1
-        if self.implausible:
+        if self.since is None:
+            self.since = t
+        if self.implausible or t - self.since < self.hold_s:
             return GravityVerdict(None, size, None, self.withheld)
         self.implausible = True
         return GravityVerdict(None, size, "implausible", self.withheld)

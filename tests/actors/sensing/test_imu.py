@@ -491,7 +491,7 @@ def test_free_fall_publishes_the_sample_but_no_tilt(chip: FakeLsm9ds1) -> None:
         await h.wait_for(BodyTilt)
         chip.accel_g = (0.0, 0.0, 0.0)
         falling = h.now()
-        await h.sleep(0.2)
+        await h.sleep(0.4)  # a fall longer than the hold-off (0.25 s): said
         chip.accel_g = (0.0, 0.0, 1.0)
         landed = h.now()
         await h.wait_for(BodyTilt, lambda m: m.t > landed)
@@ -501,12 +501,13 @@ def test_free_fall_publishes_the_sample_but_no_tilt(chip: FakeLsm9ds1) -> None:
     assert result.exit_code == 0
     assert not result.events(ActorFailed)
     zero = [s for s in result.messages("samples", of=ImuSample) if s.accel_g == (0.0, 0.0, 0.0)]
-    assert len(zero) >= 9  # 0.2 s at 50 Hz
+    assert len(zero) >= 19  # 0.4 s at 50 Hz
     tilt_seqs = {t.seq for t in result.messages("tilt", of=BodyTilt)}
     assert not tilt_seqs & {s.seq for s in zero}
     (fell,) = result.events(AccelImplausible)
     (landed,) = result.events(AccelPlausible)
-    assert (fell.seq, fell.magnitude_g, fell.sensor, fell.link) == (zero[0].seq, 0.0, "imu", LINK)
+    said = next(s for s in zero if s.t - zero[0].t >= 0.25)  # the hold-off
+    assert (fell.seq, fell.magnitude_g, fell.sensor, fell.link) == (said.seq, 0.0, "imu", LINK)
     assert landed.withheld == len(zero)
 
 
@@ -520,7 +521,7 @@ def test_tilt_needs_a_reading_near_1_g(chip: FakeLsm9ds1, tmp_path: Path) -> Non
     async def scenario(h: Harness) -> None:
         for k in scales:
             chip.accel_g = (tilt[0] * k, tilt[1] * k, tilt[2] * k)
-            await h.sleep(0.1)
+            await h.sleep(0.15)  # the shock's 0.3 s outlast the hold-off (0.25 s)
             after = h.now() - 0.05
             latest = [m for m in h.log.messages("tilt", of=BodyTilt) if m.t > after]
             got.append((k, latest[-1] if latest else None))
@@ -534,11 +535,11 @@ def test_tilt_needs_a_reading_near_1_g(chip: FakeLsm9ds1, tmp_path: Path) -> Non
             assert msg is None, k
     bad = result.events(AccelImplausible)
     good = result.events(AccelPlausible)
-    assert len(bad) == 1  # 1.3 g then 0.7 g: one implausible spell
-    assert bad[0].magnitude_g == pytest.approx(1.3, abs=1e-3)
+    assert len(bad) == 1  # 1.3 g then 0.7 g: one implausible spell, said 0.25 s in
+    assert bad[0].magnitude_g == pytest.approx(0.7, abs=1e-3)
     assert bad[0].tolerance_g == 0.2
     assert len(good) == 1
-    assert good[0].withheld == 10  # 0.2 s at 50 Hz
+    assert good[0].withheld == 15  # 0.3 s at 50 Hz
     # A tighter tolerance from the configuration refuses 1.15 g too.
     config = tmp_path / "robot.toml"
     config.write_text("[imu]\ngravity_tolerance_g = 0.1\n")

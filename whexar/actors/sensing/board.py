@@ -180,7 +180,7 @@ class SensorReader(Actor):
         acc = board.accelerometer
         self._acc_fitted = acc.fitted
         self._acc = tuple(zip(acc.zero_g_counts, acc.counts_per_g, strict=True))
-        self.gravity = GravityCheck(acc.gravity_tolerance_g)
+        self.gravity = GravityCheck(acc.gravity_tolerance_g, acc.implausible_hold_s)
         self.contacts = [False] * 6
         self.last_valid = 0.0
         self.last_seq: int | None = None
@@ -384,7 +384,7 @@ class SensorReader(Actor):
             return None  # counts from an unfitted sensor's open inputs mean nothing
         (zx, gx), (zy, gy), (zz, gz) = self._acc
         accel = ((counts[0] - zx) / gx, (counts[1] - zy) / gy, (counts[2] - zz) / gz)
-        verdict = self.gravity.check(accel)
+        verdict = self.gravity.check(accel, self.now())
         event = gravity_event(
             verdict,
             accel,

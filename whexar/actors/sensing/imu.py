@@ -152,7 +152,7 @@ class ImuReader(Actor):
             spec.gyro_range_dps,
         )
         self.period_s = 1.0 / self.wanted.rate_hz
-        self.gravity = GravityCheck(spec.gravity_tolerance_g)
+        self.gravity = GravityCheck(spec.gravity_tolerance_g, spec.implausible_hold_s)
         self.calibration = Calibration(spec.accel_offset_g, spec.gyro_offset_dps)
         self.stale_after_s = spec.stale_after_s
         if self.stale_after_s < STALE_MIN_PERIODS * self.period_s:
@@ -307,7 +307,7 @@ class ImuReader(Actor):
                     gyro_dps=reading.gyro_dps,
                 )
             )
-        verdict = self.gravity.check(reading.accel_g)
+        verdict = self.gravity.check(reading.accel_g, t)
         event = gravity_event(
             verdict,
             reading.accel_g,
