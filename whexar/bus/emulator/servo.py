@@ -672,6 +672,24 @@ class VirtualServo:
         self.reboot(t)
         self._ready_at += off_s
 
+    def power_off(self, t: float) -> None:
+        """Power lost at ``t`` until :meth:`power_on`: RAM gone (torque off, the horn free),
+        and nothing heard or answered. Unlike a silenced servo (a fault plan's ``silent``),
+        which keeps holding its goal, an unpowered one holds nothing."""
+        self.reboot(t)
+        self._ready_at = math.inf
+
+    def power_on(self, t: float) -> None:
+        """Power back at ``t``: the servo boots as at power-up (:meth:`reboot`: torque off
+        until it is enabled again, Goal Position where the horn is, silent for
+        :attr:`boot_time_s`)."""
+        self.reboot(t)
+
+    @property
+    def powered(self) -> bool:
+        """False between :meth:`power_off` and :meth:`power_on`."""
+        return not math.isinf(self._ready_at)
+
     def factory_reset(self, option: int) -> None:
         """Initial values everywhere (0xFF), except ID (0x01), except ID and baud rate (0x02)."""
         keep_id, keep_baud = self.table[7], self.table[8]
