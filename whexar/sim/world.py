@@ -48,13 +48,19 @@ FSR divider (:func:`fsr_counts`); the IR rangefinders cast rays
 ``imu`` site, mounted with its x axis to the body's left and its y axis to
 the rear, so that the tilt angles of eq. 5.6–5.7 are the body's roll and
 pitch (nose down positive).
+
+*Physical faults* (:mod:`whexar.sim.faults`), each begun and ended by its caller under a
+key of its own: :meth:`SimWorld.push` (a force on the body), :meth:`SimWorld.slip`
+(another friction under a wheel or an area, through the wheels' grip),
+:meth:`SimWorld.limp` (servos without power: no torque, no reply) and
+:meth:`SimWorld.snag` (a joint held by a limit narrowed to its angle).
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from operator import is_not
 from typing import Final
@@ -213,6 +219,34 @@ def gear_play(
     play = np.minimum(np.maximum(play + (free_w - w) * h, -half), half)
     engaged = ((play >= half) & (tau >= 0.0)) | ((play <= -half) & (tau <= 0.0))
     return np.where(engaged, tau, 0.0), play
+
+
+Span = tuple[float, float]
+"""(min, max), m."""
+
+
+@dataclass(frozen=True)
+class Patch:
+    """Ground of another friction: under one wheel (``leg``), or under the area
+    ``x`` × ``y`` (a span ``None`` is unbounded: a strip)."""
+
+    friction: float
+    """The nominal tyre's sliding µ on it."""
+    leg: int | None = None
+    x: Span | None = None
+    y: Span | None = None
+
+    def covers(self, xy: np.ndarray) -> np.ndarray:
+        """Which of the wheels touching at ``xy`` (one row of x, y, m, per wheel) it lies
+        under."""
+        if self.leg is not None:
+            under: np.ndarray = np.arange(len(xy)) == self.leg
+            return under
+        inside = np.ones(len(xy), dtype=bool)
+        for axis, span in enumerate((self.x, self.y)):
+            if span is not None:
+                inside &= (xy[:, axis] >= span[0]) & (xy[:, axis] <= span[1])
+        return inside
 
 
 class SimWorld:
@@ -394,6 +428,18 @@ class SimWorld:
         :meth:`_through_the_play`."""
         self._play = np.zeros(n)
         """Where the motor's side of the gears sits in the play, relative to the horn."""
+        # Physical faults (whexar.sim.faults), each held under its caller's key.
+        self._pushes: dict[Hashable, np.ndarray] = {}
+        self._patches: dict[Hashable, Patch] = {}
+        self._limp: dict[Hashable, tuple[int, ...]] = {}
+        self._snags: dict[Hashable, int] = {}
+        self._free_limits: dict[int, tuple[int, np.ndarray]] = {}
+        """A snagged joint's (limited, range) before its snag, by MuJoCo joint id."""
+        self.unpowered: frozenset[int] = frozenset()
+        """Servos without power (a limp fault), by ID."""
+        self._wheel_slot = np.full(model.ngeom, -1)
+        self._wheel_slot[self._wheel_geom_index] = np.arange(len(self._wheel_geoms))
+        """Each geom's leg if it is a wheel, else −1: which wheel a contact is of."""
         if board is not None:
             board.script = self._board_inputs
         mujoco.mj_forward(model, self.data)
@@ -507,9 +553,16 @@ class SimWorld:
 
     def _grip(self) -> None:
         """A rolling wheel grips less than a still one (:data:`~whexar.sim.terrain.
-        ROLLING_TRACTION`): each wheel's friction for the coming steps, from its speed."""
+        ROLLING_TRACTION`): each wheel's friction for the coming steps, from its speed and
+        the ground it is on (:meth:`slip`).
+
+        The wheels' geoms have the higher priority (:mod:`whexar.sim.model`), so a
+        wheel's contacts take its geom's friction whatever they touch: setting it is
+        setting the friction of that wheel's contacts."""
         rolling = np.abs(self.data.qvel[self._wheel_dofs]) > ROLLING_RAD_S
         still = self.wheel_friction
+        if self._patches:  # the patch's µ, scaled by this tyre's spread as the floor's is
+            still = still * self._ground_factor()
         self.model.geom_friction[self._wheel_geom_index, 0] = np.where(
             rolling, still * _ROLLING_SHARE, still
         )
@@ -635,9 +688,8 @@ class SimWorld:
         if elapsed <= 0.0:
             return
         supply = self.supply
-        self.supply_a = supply_amps(
-            bridge_c / elapsed, len(self.chain.servos), supply.terminal_volts
-        )
+        powered = len(self.chain.servos) - len(self.unpowered)
+        self.supply_a = supply_amps(bridge_c / elapsed, powered, supply.terminal_volts)
         supply.draw(self.supply_a, elapsed)
         self._feed_servos()
 
@@ -653,6 +705,109 @@ class SimWorld:
     def _current(self, servo: ServoView, t: float) -> float:
         """Present Current (A), or for the MX-28 its Present Load as a fraction of stall."""
         return self._amps[self._index_of[servo]]
+
+    # ----------------------------------------------------------------- physical faults
+    # Each takes the caller's key and what the fault does, or None to end what that key
+    # began; faults of different keys overlap (pushes add up, the latest patch wins).
+
+    def push(self, key: Hashable, force_n: Sequence[float] | None) -> None:
+        """Push the body at its centre of mass with ``force_n`` (x, y, z in the world's
+        frame, N) until ``push(key, None)``.
+
+        MuJoCo applies ``xfrc_applied`` at the body's centre of mass and keeps it across
+        steps (``mj_xfrcAccumulate``, engine_support.c)."""
+        if force_n is None:
+            self._pushes.pop(key, None)
+        else:
+            self._pushes[key] = np.asarray(force_n, dtype=float)
+        total = np.zeros(3)
+        for force in self._pushes.values():
+            total += force
+        self.data.xfrc_applied[self._base, :3] = total
+
+    def slip(self, key: Hashable, patch: Patch | None) -> None:
+        """Lay ``patch`` on the ground until ``slip(key, None)``: from the next step on, a
+        wheel it covers grips with the patch's µ instead of the floor's.
+
+        Per wheel, not per contact: MuJoCo sets a contact's friction from its geoms when it
+        makes it, and offers no hook between, so the world sets each wheel's geom friction
+        before it steps (:meth:`_grip`) from where its contact was at the step before. A
+        wheel's own spread (:mod:`whexar.sim.spread`) scales the patch's µ as it scales
+        the floor's; a rolling wheel grips with :data:`_ROLLING_SHARE` of it. Only the
+        wheels meet a patch: a leg or the body dragged on the ground keeps the floor's."""
+        self._patches.pop(key, None)
+        if patch is not None:
+            self._patches[key] = patch  # last: the latest patch lies on top
+
+    def limp(self, key: Hashable, servo_ids: Sequence[int] | None, t: float) -> None:
+        """Cut the power of servos ``servo_ids`` at bus time ``t`` until ``limp(key, None,
+        t)``, when each boots as at power-up (torque off until the bus enables it).
+
+        Unpowered, a servo hears and answers nothing and its motor makes no torque: the
+        joint moves as the load moves it, against the gears' friction alone (the torque-off
+        case of the servo law, :meth:`_control`)."""
+        before = self.unpowered
+        if servo_ids is None:
+            self._limp.pop(key, None)
+        else:
+            self._limp[key] = tuple(servo_ids)
+        self.unpowered = frozenset(sid for ids in self._limp.values() for sid in ids)
+        for sid in sorted(self.unpowered - before):
+            self.chain.servos[sid].power_off(t)
+        for sid in sorted(before - self.unpowered):
+            self.chain.servos[sid].power_on(t)
+
+    def snag(self, key: Hashable, joint: int | None) -> None:
+        """Hold joint ``joint`` (its index in :attr:`joints`) at its angle now, until
+        ``snag(key, None)`` frees it: a leg caught on something.
+
+        The hold is the joint's limit narrowed to that angle (MuJoCo builds limit
+        constraints from ``jnt_limited`` and ``jnt_range`` every step), so the joint stays
+        whatever its servo does; the servo, finding its error grow, drives into it up to
+        its duty's limit, and its current rises as against any stall."""
+        if joint is None:
+            held = self._snags.pop(key, None)
+            if held is not None and held not in self._snags.values():
+                self._free(held)
+            return
+        self._snags[key] = joint
+        jid = int(self.model.dof_jntid[self.joints[joint].dadr])
+        if jid in self._free_limits:
+            return  # held already: the first hold stands
+        m = self.model
+        self._free_limits[jid] = (int(m.jnt_limited[jid]), m.jnt_range[jid].copy())
+        q = float(self.data.qpos[self.joints[joint].qadr])
+        m.jnt_range[jid] = (q, q)
+        m.jnt_limited[jid] = 1
+
+    def _free(self, joint: int) -> None:
+        """Give joint ``joint`` its own limits back."""
+        jid = int(self.model.dof_jntid[self.joints[joint].dadr])
+        limited, span = self._free_limits.pop(jid)
+        self.model.jnt_limited[jid] = limited
+        self.model.jnt_range[jid] = span
+
+    def _ground_factor(self) -> np.ndarray:
+        """The ground under each wheel as a factor on the floor's µ
+        (:data:`~whexar.sim.terrain.GROUND_FRICTION`): the latest patch's that covers it,
+        else 1."""
+        xy = self._wheel_xy()
+        factor = np.ones(len(self._wheel_geoms))
+        for patch in self._patches.values():  # in the order they began: the latest wins
+            factor[patch.covers(xy)] = patch.friction / GROUND_FRICTION[0]
+        return factor
+
+    def _wheel_xy(self) -> np.ndarray:
+        """Where each wheel touches the ground (x, y), m: its contact's point at the last
+        step, or the point under its centre when it touches nothing."""
+        d = self.data
+        xy: np.ndarray = d.geom_xpos[self._wheel_geom_index, :2].copy()
+        n = d.ncon
+        if n:
+            slot = self._wheel_slot[d.contact.geom[:n]].max(axis=1)
+            mine = slot >= 0
+            xy[slot[mine]] = d.contact.pos[:n][mine, :2]
+        return xy
 
     # ----------------------------------------------------------------- sensors
 
@@ -777,4 +932,4 @@ def _index(addresses: list[int]) -> slice | np.ndarray:
 ROBOT_GEOM_GROUP: Final = 3
 """The geom group the robot's own geoms are moved to, so that rays skip them."""
 
-__all__ = ["SENSE_PERIOD_S", "SimWorld", "fsr_counts", "gear_play"]
+__all__ = ["SENSE_PERIOD_S", "Patch", "SimWorld", "fsr_counts", "gear_play"]
