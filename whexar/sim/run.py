@@ -37,20 +37,27 @@ from whexar.actors.messages import (
     AccelPlausible,
     LocomotionChanged,
     MotionCommand,
+    WorldFault,
 )
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
 from whexar.bus.emulator.faults import FaultInjector, load_fault_plan
 from whexar.config import RobotConfig, load_config
 from whexar.kinematics.body import Stance, quat_rpy, stance_feet
 from whexar.kinematics.leg import ik
-from whexar.robot import LEG_NAMES
+from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.clock import monotonic
 from whexar.runtime.devices import DEVICES
 from whexar.runtime.harness import Harness, RunResult, run_actors
 from whexar.runtime.messages import ActorReady, ActorStarting, Event
 from whexar.sensors.board_emulator import SENSOR_BOARD, SensorBoardEmulator
 from whexar.sensors.imu_emulator import I2C_BUS, FakeLsm9ds1, FakeSMBus
-from whexar.sim.faults import SensorFault
+from whexar.sim.faults import (
+    LimpFault,
+    PushFault,
+    SensorFault,
+    SlipperyFault,
+    WorldFaultSpec,
+)
 from whexar.sim.model import TIMESTEP_S, load_model
 from whexar.sim.motors import DEFAULT_MOTORS, MotorSource
 from whexar.sim.power import Supply
@@ -59,7 +66,7 @@ from whexar.sim.spread import Spread
 from whexar.sim.spread import apply as apply_spread
 from whexar.sim.terrain import Floor, Terrain
 from whexar.sim.tilt import BoardTilt
-from whexar.sim.world import SimWorld
+from whexar.sim.world import Patch, SimWorld
 
 if TYPE_CHECKING:
     from whexar.record.sidecar import AnyRecorder
@@ -74,6 +81,8 @@ FALLEN_TILT_RAD: Final = math.radians(60.0)
 IMU_ADDRESS: Final = 0x6B
 DEVICE_NAME: Final = "sim"
 """The name the run's servo chain, board and IMU bus are registered under."""
+WORLD_SOURCE: Final = "world"
+"""The ``source`` of the :class:`WorldFault` events the run says."""
 
 
 @dataclass(frozen=True)
@@ -277,6 +286,7 @@ def simulate(
     supply: Supply | None = None,
     motor_source: MotorSource = DEFAULT_MOTORS,
     spread: int | None = None,
+    world_faults: Sequence[WorldFaultSpec] = (),
 ) -> SimResult:
     """Run the robot for ``duration`` s of simulated time; see the module docstring.
 
@@ -300,7 +310,9 @@ def simulate(
     so a run's memory does not grow with every message; ``keep_log=True`` keeps every
     message in ``result.run.log`` too (tests that look at messages).
     ``spread`` is the seed of the robot's parts (:mod:`whexar.sim.spread`); ``None``: the
-    perfect world.
+    perfect world. ``world_faults`` are the world's physical faults (:mod:`whexar.sim.faults`):
+    each begins and ends at its time on the runtime's clock, said by a :class:`WorldFault`
+    event.
     """
     cfg = load_config(config) if config else RobotConfig()
     model = load_model(cfg, terrain=terrain, timestep=timestep)
@@ -394,6 +406,30 @@ def simulate(
         key=lambda e: e[0],
     )
 
+    changes = _world_timeline(world_faults)
+
+    def world_fault(h: Harness, k: int, f: WorldFaultSpec, ending: bool) -> None:
+        _apply_world_fault(world, cfg, k, f, ending, h.now())
+        target, detail = f.describe(cfg)
+        h.runtime.emit(
+            WorldFault(
+                t=h.now(),
+                source=WORLD_SOURCE,
+                kind=f.kind,
+                target=target,
+                detail=detail,
+                active=not ending,
+            )
+        )
+
+    async def world_until(h: Harness, t: float) -> None:
+        """The world's faults due up to ``t``, each at its own time (not the samples')."""
+        while changes and changes[0][0] <= t + 1e-9:
+            at, k, f, ending = changes.pop(0)
+            if at > h.now():
+                await h.sleep_until(at)
+            world_fault(h, k, f, ending)
+
     async def scenario(h: Harness) -> None:
         if recorder is None:
             await timeline_and_samples(h)
@@ -407,6 +443,7 @@ def simulate(
         pending = sorted(commands, key=lambda c: c[0])
         k = j = 0
         t = 0.0
+        await world_until(h, t)
         while True:
             while k < len(pending) and pending[k][0] <= t + 1e-9:
                 cmd = pending[k][1]
@@ -423,6 +460,7 @@ def simulate(
                 qw, qx, qy, qz = world.base_quat
                 recorder.transform(h.now(), "world", "base", (x, y, z), (qx, qy, qz, qw))
             t += SAMPLE_PERIOD_S
+            await world_until(h, t)
             await h.sleep_until(t)
 
     graph = sim_graph(name, config=str(config) if config else None)
@@ -469,6 +507,32 @@ def simulate(
         series=series,
         heading_rad=yaw0,
     )
+
+
+def _world_timeline(
+    faults: Sequence[WorldFaultSpec],
+) -> list[tuple[float, int, WorldFaultSpec, bool]]:
+    """(time, index, fault, ending) of every beginning and end, in time order (at one
+    time, ends before beginnings, each in the order of the file)."""
+    out = [(f.at_s, k, f, False) for k, f in enumerate(faults)]
+    out += [(end, k, f, True) for k, f in enumerate(faults) if (end := f.ends_at) is not None]
+    return sorted(out, key=lambda e: (e[0], not e[3], e[1]))
+
+
+def _apply_world_fault(
+    world: SimWorld, cfg: RobotConfig, key: int, f: WorldFaultSpec, ending: bool, t: float
+) -> None:
+    """Begin (or end) fault ``key`` of the run's physical faults in ``world`` at ``t``."""
+    if isinstance(f, PushFault):
+        world.push(key, None if ending else f.force())
+    elif isinstance(f, SlipperyFault):
+        patch = Patch(f.friction, f.leg, f.x_m, f.y_m)
+        world.slip(key, None if ending else patch)
+    elif isinstance(f, LimpFault):
+        world.limp(key, None if ending else f.servo_ids(cfg), t)
+    else:
+        joint = world.by_servo[cfg.legs[f.leg].servo_ids[JOINT_NAMES.index(f.joint)]].index
+        world.snag(key, None if ending else joint)
 
 
 def _recorder(

@@ -72,9 +72,30 @@ random features of a table terrain (rocks without a seed of their own) and, with
 ``spread = true`` (default false: the nominal robot), draws the robot's parts
 within their datasheets' spread (:mod:`whexar.sim.spread`): sensor gains and
 offsets, wheel friction, masses, backlash, reply delays. A
-fault plan keeps its own seed. Sensor faults are ``[[sensor_faults]]`` tables
-(:class:`~whexar.sim.faults.SensorFault`: a board or IMU unplugged, corrupted or
-dropped frames, a frozen IMU, a dead force sensor or rangefinder, at a time).
+fault plan keeps its own seed.
+
+*Faults.* Besides a bus fault plan (``faults``), sensor faults are ``[[sensor_faults]]``
+tables (:class:`~whexar.sim.faults.SensorFault`: a board or IMU unplugged, corrupted or
+dropped frames, a frozen IMU, a dead force sensor or rangefinder, at a time), and the
+world's physical faults ``[[world_faults]]`` tables, each of a ``kind`` with its own
+keys (:mod:`whexar.sim.faults` has them all): ``push`` (a force on the body),
+``slippery`` (the ground's friction under a wheel or an area), ``limp`` (servos without
+power: no torque, no reply) and ``snag`` (a joint held), each from ``at_s`` for
+``duration_s``. ::
+
+    [[world_faults]]
+    kind = "push"
+    at_s = 4.0
+    force_n = 60.0
+    heading_deg = 90.0
+    duration_s = 0.3
+
+    [[world_faults]]
+    kind = "snag"
+    at_s = 7.0
+    leg = 2
+    joint = "tibia"
+    duration_s = 1.0
 """
 
 from __future__ import annotations
@@ -103,7 +124,7 @@ from whexar.runtime.schema import (
     read_toml,
 )
 from whexar.sim import terrain as tr
-from whexar.sim.faults import SensorFault
+from whexar.sim.faults import SensorFault, WorldFaultSpec, check_world_faults
 from whexar.sim.motors import DEFAULT_MOTORS, MotorSource
 from whexar.sim.power import (
     BENCH_VOLTS,
@@ -311,6 +332,9 @@ class ScenarioFile(CheckedSection):
     """A bus fault plan (``config/faults/*.toml``), relative to the scenario's folder."""
     sensor_faults: tuple[SensorFault, ...] = ()
     """The sensors' faults (:mod:`whexar.sim.faults`), ``[[sensor_faults]]`` tables."""
+    world_faults: tuple[Any, ...] = ()
+    """The world's physical faults, ``[[world_faults]]`` tables, checked by
+    :func:`~whexar.sim.faults.check_world_faults` (each by the keys of its kind)."""
     config: str | None = Field(default=None, min_length=1)
     """A robot configuration file, relative to the scenario's folder; absent: the defaults."""
     tilt: TiltSpec | None = None
@@ -354,6 +378,8 @@ class Scenario:
     """The document, kept so that :meth:`with_overrides` can rebuild a seeded terrain."""
     spread: bool = False
     """Whether the seed draws the robot's parts too (:mod:`whexar.sim.spread`)."""
+    world_faults: tuple[WorldFaultSpec, ...] = ()
+    """The world's physical faults (:mod:`whexar.sim.faults`)."""
 
     def with_overrides(
         self,
@@ -415,6 +441,7 @@ class Scenario:
             supply=self.spec.supply.build(),
             motor_source=self.spec.motors,
             spread=self.seed if self.spread else None,
+            world_faults=self.world_faults,
         )
 
 
@@ -460,6 +487,11 @@ def parse_scenario(
             e["loc"] and e["loc"][0] == "commands" for e in exc.errors()
         ):
             check_commands(commands, RobotConfig(), problems)
+        world = data.get("world_faults")
+        if isinstance(world, list) and not any(
+            e["loc"] and e["loc"][0] == "world_faults" for e in exc.errors()
+        ):
+            check_world_faults(world, RobotConfig().servos(), problems)
         raise ConfigError(source, problems) from None
     problems = spec.problems()
     cfg = _config(spec.config, folder, problems)
@@ -474,6 +506,7 @@ def parse_scenario(
             )
         )
     commands = check_commands(spec.commands, cfg or RobotConfig(), problems)
+    world_faults = check_world_faults(spec.world_faults, (cfg or RobotConfig()).servos(), problems)
     terrain = _terrain(spec.terrain, spec.seed, problems)
     if terrain is not None:
         x = spec.start.x_m
@@ -503,6 +536,7 @@ def parse_scenario(
         source=source,
         spec=spec,
         spread=spec.spread,
+        world_faults=world_faults,
     )
 
 
