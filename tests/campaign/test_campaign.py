@@ -126,8 +126,8 @@ def test_unknown_keys_are_named_before_anything_runs() -> None:
     found = _problems({"scenario": "wheels", "grid": {"bogus": [1]}})
     assert found == [
         "grid.bogus = 1: a scenario key (name, description, duration_s, seed, spread, terrain, "
-        "start, commands, faults, sensor_faults, config, tilt, supply, motors, with .key and "
-        "[index] inside them), "
+        "start, commands, faults, sensor_faults, world_faults, config, tilt, supply, motors, "
+        "with .key and [index] inside them), "
         "config.<section>.<key>, measure.from_s, measure.to_s, timeout_s or label"
     ]
     found = _problems({"scenario": "wheels", "grid": {"commands[9].t": [1.0]}})
