@@ -642,10 +642,13 @@ class LegState(Message):
     both in the body frame, ``None`` before the first reading. ``contact`` comes
     from the force sensor when the leg has one, else from the femur current
     (thesis 6.7.3); ``contact_source`` says which ("fsr", "current", "none").
-    ``load`` is the eq. 5.19 indicator F = I / (L·sin α) of the femur and tibia
-    segments (A/m), ``None`` where a reading is missing or the next joint is
-    nearly straight. ``ik_ok`` is False while the leg holds its last good pose
-    because the IK failed.
+    ``contact_confidence`` is the probability that ``contact`` is right given the
+    force sensor, the current and the step's phase together
+    (:mod:`whexar.kinematics.contact`); ``contact_source`` "none" with confidence 0
+    when no sensor can be used. ``load`` is the eq. 5.19 indicator F = I / (L·sin α)
+    of the femur and tibia segments (A/m), ``None`` where a reading is missing or the
+    next joint is nearly straight. ``ik_ok`` is False while the leg holds its last good
+    pose because the IK failed.
     """
 
     leg: int
@@ -658,6 +661,7 @@ class LegState(Message):
     contact_source: str
     load: tuple[float | None, float | None]
     ik_ok: bool = True
+    contact_confidence: float = 1.0
 
 
 @message
@@ -757,6 +761,25 @@ class ReflexActivity(Message):
     reason: str = ""
     inhibits: tuple[str, ...] = ()
     inhibited: bool = False
+
+
+@message
+class ContactDegraded(Event):
+    """Leg ``leg``'s contact sensor ``sensor`` (fsr, current) is set aside (``reason``):
+    its contact estimate falls back on what is left (:mod:`whexar.kinematics.contact`)."""
+
+    leg: int
+    sensor: str
+    reason: str
+
+
+@message
+class ContactRestored(Event):
+    """Leg ``leg``'s contact sensor ``sensor`` is used again (``reason``)."""
+
+    leg: int
+    sensor: str
+    reason: str
 
 
 @message

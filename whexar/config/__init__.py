@@ -62,6 +62,7 @@ from whexar.config.loading import (
 )
 from whexar.config.motion import (
     ContactSource,
+    ContactSpec,
     GaitSelectorSpec,
     GaitThresholds,
     LocomotionSpec,
@@ -90,6 +91,7 @@ __all__ = [
     "BusSpec",
     "ConfigFile",
     "ContactSource",
+    "ContactSpec",
     "DHRow",
     "DHSpec",
     "FSRSpec",

@@ -22,7 +22,13 @@ from pydantic import (
 from whexar.config.common import DH_SEGMENT_TOLERANCE_MM, ServoModelName
 from whexar.config.gamepad import GamepadSpec, stance_problems
 from whexar.config.links import BusSpec, FSRSpec, ImuSpec, IRSpec, SensorBoardSpec
-from whexar.config.motion import GaitSelectorSpec, LocomotionSpec, StanceSpec, default_stances
+from whexar.config.motion import (
+    ContactSpec,
+    GaitSelectorSpec,
+    LocomotionSpec,
+    StanceSpec,
+    default_stances,
+)
 from whexar.config.parts import (
     BodySpec,
     DHSpec,
@@ -71,6 +77,7 @@ class RobotConfig(CheckedSection):
     gait_selector: GaitSelectorSpec = GaitSelectorSpec()
     stances: dict[str, StanceSpec] = Field(default_factory=default_stances)
     locomotion: LocomotionSpec = LocomotionSpec()
+    contact: ContactSpec = ContactSpec()
     gamepad: GamepadSpec = GamepadSpec()
     recording: RecordingSpec = RecordingSpec()
     reflexes: tuple[ReflexEntry, ...] = ()

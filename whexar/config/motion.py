@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import (
     Field,
@@ -13,6 +13,7 @@ from pydantic import (
 
 from whexar.errors import Problem
 from whexar.kinematics.body import Stance
+from whexar.kinematics.contact import ContactModel, SensorModel
 from whexar.kinematics.gait import GAIT_RANKING
 from whexar.runtime.schema import (
     NonNegative,
@@ -92,6 +93,101 @@ class GaitSelectorSpec(Section):
                             f"the ranking {' < '.join(GAIT_RANKING)}",
                         )
                     )
+        return found
+
+
+# --------------------------------------------------------------------------- contact
+
+
+Probability = Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)]
+
+
+class ContactSpec(Section):
+    """The legs' contact estimate (:mod:`whexar.kinematics.contact`): how far each sensor is
+    to be believed, and when one is set aside. ``locomotion.contact`` says which sensor
+    the legs prefer and ``locomotion.contact_current_a`` the current that reads as load.
+
+    The sensors' rates are per control cycle, measured in the simulated tripod walk on the
+    flat (docs/reflexes.md, "The contact estimate"); they include each sensor's lag at
+    touchdown and lift-off, which is most of their errors."""
+
+    fsr_hit: Probability = 0.89
+    """P(the FSR reads contact | the foot is in stance)."""
+    fsr_false_alarm: Probability = 0.16
+    """P(the FSR reads contact | the foot is in swing): its ~0.1 s lag at lift-off."""
+    current_hit: Probability = 0.46
+    """P(|femur current| above the threshold | stance): the middle legs carry less."""
+    current_false_alarm: Probability = 0.12
+    """P(|femur current| above the threshold | swing)."""
+    stance_prior: Probability = 0.9
+    """P(load) of a foot the leg holds down: its step says so, unless the ground is not
+    where the leg thinks."""
+    swing_prior: Probability = 0.1
+    fsr_fresh_s: Positive = 0.5
+    """Force-sensor frames older than this no longer count: ten frames at 20 Hz (5.4)."""
+    current_fresh_s: Positive = 0.1
+    """A femur current read longer ago than this is stale: ten control cycles, every read
+    plan reads currents each cycle (:mod:`whexar.bus.plan`)."""
+    fault_steps: int = Field(default=3, ge=1, le=50)
+    """A force sensor that contradicts this many stances (or swings) in a row is set
+    aside: one could be a hole, three are the sensor."""
+    noisy_step_a: Positive = 0.4
+    """A femur current that moves by more than this per cycle, on average over a stance,
+    is noise and set aside until a stance is calm again (walking: 0.03–0.24 A a cycle,
+    docs/reflexes.md)."""
+    loaded_share: float = Field(default=0.25, gt=0, le=1, allow_inf_nan=False)
+    """A stance counts against a silent force sensor when the femur current read load for
+    this share of it: a dead sensor's loaded leg reads so for 0.46–0.55 of a stance, a
+    leg the others unload (the foot of a ramp) for 0.01–0.07 (docs/reflexes.md)."""
+    learn_cycles: float = Field(default=200.0, ge=10, le=100000, allow_inf_nan=False)
+    """Each leg learns its femur current's threshold from running means over this many
+    control cycles (2 s at 100 Hz: a gait cycle or more), labelled by its force sensor."""
+    separation_a: Positive = 0.2
+    """The learnt stance and swing currents must lie this far apart to be used (the
+    front legs' lie 0.8 A apart walking the tripod gait, docs/reflexes.md)."""
+    touchdown_s: Positive = 0.25
+    """A swing that ended with no contact is judged this long after its end: ``completed``
+    if contact came meanwhile, else ``no_contact`` (the FSR's contact lags the swing's end
+    by up to 0.13 s, docs/reflexes.md)."""
+
+    def model(self, current_a: float) -> ContactModel:
+        """The estimator's model, ``current_a`` the femur current that reads as load."""
+        return ContactModel(
+            fsr=SensorModel(self.fsr_hit, self.fsr_false_alarm),
+            current=SensorModel(self.current_hit, self.current_false_alarm),
+            current_a=current_a,
+            stance_prior=self.stance_prior,
+            swing_prior=self.swing_prior,
+            fsr_fresh_s=self.fsr_fresh_s,
+            current_fresh_s=self.current_fresh_s,
+            fault_steps=self.fault_steps,
+            noisy_step_a=self.noisy_step_a,
+            loaded_share=self.loaded_share,
+            learn_cycles=self.learn_cycles,
+            separation_a=self.separation_a,
+        )
+
+    def problems(self, at: str) -> list[Problem]:
+        found = []
+        for sensor in ("fsr", "current"):
+            hit, false = getattr(self, f"{sensor}_hit"), getattr(self, f"{sensor}_false_alarm")
+            if false >= hit:
+                found.append(
+                    Problem(
+                        f"{at}.{sensor}_false_alarm",
+                        false,
+                        f"below {sensor}_hit ({hit:g}): a sensor that reads contact more "
+                        "often in swing than in stance tells nothing",
+                    )
+                )
+        if self.swing_prior >= self.stance_prior:
+            found.append(
+                Problem(
+                    f"{at}.swing_prior",
+                    self.swing_prior,
+                    f"below stance_prior ({self.stance_prior:g})",
+                )
+            )
         return found
 
 

@@ -220,17 +220,32 @@ def test_a_swing_that_ends_without_sensing_contact_is_completed() -> None:
     assert [e.outcome for e in swing_ends(out)] == ["completed"]
 
 
-def test_a_swing_without_ground_ends_with_no_contact() -> None:
+def test_a_swing_without_ground_ends_with_no_contact_once_touchdown_has_passed() -> None:
     leg, angles = placed()
     out = run(
         leg,
         1.1,
-        1.8,
+        1.9,
         angles,
         femur_a=0.0,
         steps=(step("swing", 1.1, 0.5, swing_target(), height_m=0.04),),
     )
-    assert [e.outcome for e in swing_ends(out)] == ["no_contact"]
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "no_contact"
+    # Judged touchdown_s after the swing's end (1.6 s), on the first cycle past it.
+    assert 1.6 + CFG.contact.touchdown_s <= ended.t < 1.6 + CFG.contact.touchdown_s + DT
+    after = [m.phase for m in out if isinstance(m, LegState) and m.t > 1.61]
+    assert after == ["stance"] * len(after)
+    assert len(after) >= 13
+
+
+def test_a_contact_that_lags_the_swing_end_still_completes_it() -> None:
+    leg, angles = placed()
+    # The sensor feels the ground 0.12 s after the swing's end (the FSR's lag).
+    out = swing(leg, angles, lambda u, z: LOADED_A if u >= 1.0 + 0.12 / 0.5 - 1e-9 else 0.0)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "completed"
+    assert ended.t == pytest.approx(1.72)
 
 
 def test_a_swing_stopped_on_the_way_down_ends_early_and_the_stance_stays_there() -> None:
@@ -264,7 +279,12 @@ def test_a_contact_that_never_went_away_is_not_believed() -> None:
         femur_a=LOADED_A,
         steps=(step("swing", 1.1, 0.5, swing_target(), height_m=0.04),),
     )
-    assert [e.outcome for e in swing_ends(out)] == []
+    # Neither blocked nor stopped early: the swing runs its course, then the stance.
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "completed"
+    assert ended.t == pytest.approx(1.6)
+    assert leg.foot is not None
+    assert leg.foot[0] == pytest.approx(swing_target()[0])
 
 
 def override(t: float, angle: float, *, priority: int = 0, source: str = "reflex") -> JointGoals:
@@ -301,7 +321,7 @@ def test_a_lower_priority_override_waits_for_a_higher_one_to_let_go() -> None:
     run(leg, 2.0, 2.05, angles, overrides=(override(2.0, own - 0.2, priority=5, source="hi"),))
     # Still held: a lower priority's goal is refused, an equal or higher one taken.
     run(leg, 2.05, 2.1, angles, overrides=(override(2.05, own + 0.2, priority=1, source="lo"),))
-    assert leg.overrides[FEMUR][0] == own - 0.2
+    assert leg.overrides.held[FEMUR][0] == own - 0.2
     out = run(
         leg, 2.1, 2.15, angles, overrides=(override(2.1, own + 0.3, priority=5, source="hi"),)
     )
@@ -347,7 +367,7 @@ def test_an_override_for_another_leg_or_the_wheel_is_ignored() -> None:
     msgs = (JointGoals(t=2.0, source="reflex", goals=(other, wheel, nan), reflex=True),)
     out = run(leg, 2.0, 2.1, angles, overrides=msgs)
     assert goals_of(out) == []
-    assert leg.overrides == {}
+    assert leg.overrides.held == {}
 
 
 def test_an_unreachable_foot_holds_the_last_good_pose_and_says_so_once() -> None:

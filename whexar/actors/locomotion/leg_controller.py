@@ -34,10 +34,13 @@ In a cycle the leg
 5. says the goals that changed by half a tick or more (the bus keeps the
    others) and its :class:`LegState`.
 
-Adaptive swing (Diosdado 2014, 3.5–3.6): contact comes from the force
-sensor when frames arrive, otherwise from the femur current (thesis 6.7.3).
-A swing whose foot meets the ground from its apex on stops there, and the
-stance continues from that height. Every swing's end is a
+Adaptive swing (Diosdado 2014, 3.5–3.6): contact is the leg's contact
+estimate (:class:`~whexar.kinematics.contact.ContactEstimator`): the force
+sensor while its frames arrive and it behaves, otherwise the femur current
+(thesis 6.7.3), with a confidence from both and the step's phase; a sensor
+set aside or taken back is a :class:`ContactDegraded` or
+:class:`ContactRestored` event. A swing whose foot meets the ground from its
+apex on stops there, and the stance continues from that height. Every swing's end is a
 :class:`SwingEnded` — completed, early contact, blocked (something met on
 the way up: the elevator reflex's case), no contact (the searching
 reflex's) — the typed signal a reflex subscribes to. A contact that never
@@ -49,15 +52,10 @@ about its own long axis, now reaches the ground on the robot's back. With
 the trochanter at −π, IK is the upright IK of the mirrored leg.
 
 Overrides (the interface the reactive layer uses): :class:`JointGoals`
-marked ``reflex`` on the leg's override input. Each goal for one of this
-leg's positioning joints (coxa…tarsus) takes that joint over for
-``locomotion.reflex_hold_s`` from the goal's ``t``, unless an override of
-higher ``priority`` holds it (goals of one cycle, or one still held: the
-priority decides, then the source's name, never the order of arrival); the leg's own
-trajectory goes on underneath. Once no override has held the joint for
-``reflex_hold_s``, the leg blends from the override's angle back to its own
-over ``locomotion.reflex_blend_s``: no jump. An override keeps control by
-coming again; it never has to hand control back explicitly.
+marked ``reflex`` on the leg's override input take its positioning joints
+over for ``locomotion.reflex_hold_s``, the highest priority winning, then
+blend back over ``locomotion.reflex_blend_s`` (:mod:`.overrides`); the leg's
+own trajectory goes on underneath, and the leg alone decides its joints' goals.
 """
 
 from __future__ import annotations
@@ -67,9 +65,12 @@ from collections.abc import Iterable
 from typing import Final
 
 from whexar.actors.locomotion.frames import LegFrame
+from whexar.actors.locomotion.overrides import Overrides
 from whexar.actors.locomotion.steps import Step, advance
 from whexar.actors.messages import (
     BodyMotion,
+    ContactDegraded,
+    ContactRestored,
     IkFailed,
     JointGoal,
     JointGoals,
@@ -81,13 +82,12 @@ from whexar.actors.messages import (
 )
 from whexar.config import ContactSource, RobotConfig
 from whexar.errors import KinematicsError
+from whexar.kinematics.contact import ContactEstimator
 from whexar.kinematics.leg import fk_point, ik_point, trochanter_arc
 from whexar.kinematics.trajectory import SwingOutcome, min_jerk, swing_table
 from whexar.robot import N_JOINTS
 from whexar.runtime.messages import Message
 
-FSR_FRESH_S: Final = 0.5
-"""Force-sensor frames older than this no longer count (auto falls back to the current)."""
 MIN_SIN: Final = 0.05
 """eq. 5.19 divides by sin α: below this (a joint within 3° of straight) it says nothing."""
 FLIPPED_TROCHANTER: Final = -math.pi
@@ -137,19 +137,24 @@ class LegController:
         self.cycle_no = 0
         self.ik_ok = True
         self.contact = False
+        self.confidence = 0.0
+        self.phase = "idle"
+        """The phase of the last cycle: the contact estimate's expectation."""
         self.fsr_t = -math.inf
-        self.fsr_contact = False
-        self.overrides: dict[int, tuple[float, float, tuple[int, str]]] = {}
-        """joint → (angle, time of the override goal, its (priority, source))."""
-        self.blends: dict[int, tuple[float, float]] = {}
-        """joint → (override angle at release, release time)."""
+        self.fsr_contact: bool | None = None
+        self.femur_current: float | None = None
+        self.current_t = -math.inf
+        self.estimator = ContactEstimator(
+            cfg.contact.model(self.loco.contact_current_a), self.contact_source
+        )
+        self.touchdown_s = cfg.contact.touchdown_s
+        self.overrides = Overrides(leg, self.loco.reflex_hold_s, self.loco.reflex_blend_s)
         self.wheel_radius = self.geometry.wheel_radius
         self.sent: list[float] = [math.inf] * N_JOINTS
         """The goals last said, per joint (rad, or rad/s for the wheel); inf: none yet."""
         self.steer = False
         self.heading = 0.0
         self.speed = 0.0
-        self.contact_current_a = self.loco.contact_current_a
         self.femur = self.geometry.femur
         self.tibia = self.geometry.tibia
         self._out: list[Message] = []
@@ -192,6 +197,9 @@ class LegController:
             origin = list(self.frame.from_leg(fk_point(start, self.geometry)))
         elif cmd.kind in ("stance", "hold") and self.foot is None:
             return  # nothing to hold yet: the first command must place the foot
+        old = self.step
+        if old is not None and old.awaiting:  # a new step before its touchdown was judged
+            self._swing_ended(cmd.start_t, old.judged(self.contact), old)
         self.step = Step(
             cmd.kind,
             cmd.start_t,
@@ -214,48 +222,33 @@ class LegController:
                 position = j.position_rad
                 if position is not None:
                     measured[j.joint] = position
-                currents[j.joint] = j.current_a
+                currents[j.joint] = amps = j.current_a
+                if amps is not None and j.joint == 2:
+                    self.femur_current, self.current_t = amps, states.t
 
     def _take_loads(self, loads: LegLoads | None) -> None:
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
 
-    def _take_overrides(self, t: float, overrides: Iterable[JointGoals]) -> None:
-        # Per joint, the highest priority wins — among this cycle's goals and over one
-        # still held — then the source's name: never the order they arrived in.
-        hold = self.loco.reflex_hold_s
-        for msg in overrides:
-            if not msg.reflex:
-                continue
-            rank = (msg.priority, msg.source)
-            for g in msg.goals:
-                angle = g.position_rad
-                mine = g.leg == self.leg and g.joint < _POSITIONING
-                if not (mine and angle is not None and math.isfinite(angle)):
-                    continue
-                held = self.overrides.get(g.joint)
-                if (
-                    held is not None
-                    and t - held[1] <= hold
-                    and (held[2] > rank or (held[2] == rank and held[1] > msg.t))
-                ):
-                    continue
-                self.overrides[g.joint] = (angle, msg.t, rank)
-                self.blends.pop(g.joint, None)
-
     # ----------------------------------------------------------------- contact
 
     def _contact(self, t: float) -> tuple[bool, str]:
-        source = self.contact_source
-        if source == "auto":
-            source = "fsr" if t - self.fsr_t <= FSR_FRESH_S else "current"
-        if source == "fsr":
-            return (self.fsr_contact and t - self.fsr_t <= FSR_FRESH_S), "fsr"
-        if source == "current":
-            amps = self.currents[2]
-            return (amps is not None and abs(amps) > self.contact_current_a), "current"
-        return False, "none"
+        est = self.estimator.estimate(
+            t,
+            self.phase,
+            fsr=self.fsr_contact,
+            fsr_t=self.fsr_t,
+            current_a=self.femur_current,
+            current_t=self.current_t,
+        )
+        self.confidence = est.confidence
+        for c in self.estimator.take_changes():
+            event = ContactRestored if c.usable else ContactDegraded
+            self._out.append(
+                event(t=self._now, source=self.name, leg=self.leg, sensor=c.sensor, reason=c.reason)
+            )
+        return est.contact, est.source
 
     def load(self) -> tuple[float | None, float | None]:
         """eq. 5.19, F_i = I_i / (L_i · sin α_{i+1}), for the femur and tibia segments."""
@@ -358,39 +351,18 @@ class LegController:
         decides, as in a cycle): the goals of the joints they now hold, to send the bus
         straight away — it writes them at its next cycle, not one cycle later. ``None``:
         nothing new for the bus (or the leg not yet placed)."""
-        self._take_overrides(now, overrides)
+        self.overrides.take(now, overrides)
         if self.foot is None or self.angles is None:
             return None
         last, name, leg = self.sent, self.name, self.leg
         goals = []
-        for joint, (angle, _, _) in sorted(self.overrides.items()):
+        for joint, (angle, _, _) in sorted(self.overrides.held.items()):
             if abs(angle - last[joint]) >= HALF_TICK_RAD:
                 last[joint] = angle
                 goals.append(
                     JointGoal(t=now, source=name, leg=leg, joint=joint, position_rad=angle)
                 )
         return JointGoals(t=now, source=name, goals=tuple(goals)) if goals else None
-
-    def _apply_overrides(self, t: float, angles: list[float]) -> tuple[list[float], bool]:
-        """The override-held joints, and the blend back from them (module docstring);
-        True while an override holds a joint."""
-        hold, blend = self.loco.reflex_hold_s, self.loco.reflex_blend_s
-        held = False
-        out = list(angles)
-        for joint, (angle, since, _) in list(self.overrides.items()):
-            if t - since <= hold:
-                out[joint] = angle
-                held = True
-            else:
-                del self.overrides[joint]
-                self.blends[joint] = (angle, since + hold)
-        for joint, (angle, released) in list(self.blends.items()):
-            w = (t - released) / blend
-            if w >= 1.0:
-                del self.blends[joint]
-                continue
-            out[joint] = angle + (angles[joint] - angle) * min_jerk(w)
-        return out, held
 
     # ----------------------------------------------------------------- the cycle
 
@@ -418,7 +390,7 @@ class LegController:
         self._take_state(states)
         self._take_motion(motion)
         self._take_loads(loads)
-        self._take_overrides(now, overrides)
+        self.overrides.take(now, overrides)
         for cmd in steps:
             if cmd.leg == self.leg:
                 self._begin(cmd)
@@ -427,7 +399,7 @@ class LegController:
         phase, progress = "idle", 0.0
         if self.step is not None and self.foot is not None:
             phase, progress, outcome = advance(
-                self.step, self.foot, self.twist, t, dt, contact, source
+                self.step, self.foot, self.twist, t, dt, contact, source, self.touchdown_s
             )
             if outcome is not None:
                 self._swing_ended(t, outcome, self.step)
@@ -456,8 +428,8 @@ class LegController:
             self.angles = angles
         angles = list(angles)
         angles[1] = troch
-        if self.overrides or self.blends:
-            angles, held = self._apply_overrides(t, angles)
+        if self.overrides:
+            angles, held = self.overrides.apply(t, angles)
             if held:
                 phase = "reflex"
         airborne = phase in ("swing", "flip") or (
@@ -466,6 +438,7 @@ class LegController:
         goals = self._goals(t, angles, airborne)
         if goals is not None:
             out.append(goals)
+        self.phase = phase
         if self.report:
             out.append(self._state(t, phase, progress, troch, contact, source))
         return out
@@ -497,4 +470,5 @@ class LegController:
             contact_source=source,
             load=self.load(),
             ik_ok=self.ik_ok,
+            contact_confidence=self.confidence,
         )

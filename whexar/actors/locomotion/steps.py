@@ -15,9 +15,12 @@ Adaptive swing: a contact that comes once the foot has been seen off the
 ground is new ground. Before the apex it is an obstacle on the way up
 (``blocked``, said once; the swing goes on); from the apex on the foot stops
 there (``early_contact``) and the stance continues from that height; at the
-end of the swing it is ``completed``, and no contact then is ``no_contact``.
-A contact that never went away after lift-off is not believed (a stuck
-sensor). Plain functions over plain data: no time is read, nothing is sent.
+end of the swing it is ``completed``. A foot with no contact at the end of its
+swing is put down and judged ``touchdown_s`` later: ``completed`` if contact
+came meanwhile (a sensor lags the foot: the force sensor's frames by up to a
+tenth of a second), ``no_contact`` if none did — no ground where it was
+expected. A contact that never went away after lift-off is not believed (a
+stuck sensor). Plain functions over plain data: no time is read, nothing is sent.
 """
 
 from __future__ import annotations
@@ -46,6 +49,13 @@ class Step:
     """A swing's foot was seen off the ground (so a contact now is new ground)."""
     reported: bool = False
     ended: bool = False
+    awaiting: bool = False
+    """The swing ended with no contact: its outcome waits for ``touchdown_s``."""
+
+    def judged(self, contact: bool) -> SwingOutcome:
+        """The outcome of a swing still awaiting its touchdown, judged now."""
+        self.awaiting = False
+        return "completed" if contact else "no_contact"
 
 
 def advance(
@@ -56,11 +66,13 @@ def advance(
     dt: float,
     contact: bool,
     source: str,
+    touchdown_s: float = 0.0,
 ) -> tuple[str, float, SwingOutcome | None]:
     """Move ``foot`` (upright frame, in place) along ``step`` to time ``t``; ``dt`` since the
     last cycle, ``twist`` the body's, ``contact`` this cycle's reading from ``source``
-    (``"none"``: the leg senses no contact). Returns the phase (swing, move, stance, hold),
-    the progress through the step and, when the swing ended now, how."""
+    (``"none"``: the leg senses no contact), ``touchdown_s`` how long a swing that ended
+    without contact waits for one. Returns the phase (swing, move, stance, hold), the
+    progress through the step and, when the swing's outcome is known now, that."""
     u = (t - step.start_t) / step.duration
     u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
     if step.kind == "swing" and not step.ended:
@@ -71,7 +83,12 @@ def advance(
         foot[1] = o[1] + (g[1] - o[1]) * f
         foot[2] = o[2] + (g[2] - o[2]) * f + step.height * h
         if source != "none":
-            return "swing", u, _adapt(step, u, contact)
+            outcome = _adapt(step, u, contact)
+            if outcome is None and step.ended:  # down with no contact: wait for it
+                step.awaiting = True
+                if touchdown_s <= 0.0:
+                    outcome = step.judged(False)
+            return "swing", u, outcome
         if u >= 1.0:
             step.ended = True
             return "swing", u, "completed"
@@ -94,6 +111,8 @@ def advance(
             x, y = c * x - s_ * y, s_ * x + c * y
         foot[0], foot[1] = x - vx * dt, y - vy * dt
     kind = "stance" if step.kind in ("swing", "stance") else "hold"
+    if step.awaiting and (contact or t - (step.start_t + step.duration) >= touchdown_s):
+        return kind, u, step.judged(contact)
     return kind, u, None
 
 
@@ -104,14 +123,13 @@ def _adapt(step: Step, u: float, contact: bool) -> SwingOutcome | None:
         if u > 0.0:
             step.lifted = True
         if u >= 1.0:
-            step.ended = True
-            return "no_contact"
+            step.ended = True  # no contact yet: advance() waits touchdown_s for one
         return None
-    if not step.lifted or u <= 0.0:
-        return None  # still on the ground at lift-off, or a sensor stuck on
     if u >= 1.0:
         step.ended = True
-        return "completed"  # touchdown where expected
+        return "completed"  # touchdown where expected (or a sensor that never let go)
+    if not step.lifted or u <= 0.0:
+        return None  # still on the ground at lift-off, or a sensor stuck on
     if u < step.shape.apex_u:
         if not step.reported:
             step.reported = True
