@@ -39,7 +39,17 @@ ROBOT_GRAPH: Final = GRAPH_DIR / "walk.toml"
 """The robot's graph."""
 EDGES: Final = {"bus": "port", "sensors": "port", "imu": "device", "commands": "source"}
 """The robot's edge actors and the parameter that names each one's device or front end."""
-CONFIGURED: Final = ("bus", "sensors", "imu", "leg-*", "coordinator", "commands", "reflex-*")
+CONFIGURED: Final = (
+    "bus",
+    "sensors",
+    "imu",
+    "leg-*",
+    "coordinator",
+    "commands",
+    "terrain",
+    "gait-selector",
+    "reflex-*",
+)
 """The robot graph's actors that read the robot configuration (their ``config``
 parameter), as shell patterns of their names."""
 

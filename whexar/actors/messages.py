@@ -549,7 +549,8 @@ class MotionCommand(Message):
     * ``vx_m_s``, ``vy_m_s``, ``yaw_rate_rad_s``: body velocity (forward, left, turn
       rate counter-clockwise); ``turn_radius_m`` instead of a yaw rate drives along a
       circle about (0, R) (R > 0: a left turn), the yaw rate following the speed;
-    * ``gait``: tripod, tetrapod, ripple, wave; ``mode``: walk, ride, hybrid;
+    * ``gait``: tripod, tetrapod, ripple, wave, or ``auto`` (the gait selector's choice);
+      ``mode``: walk, ride, hybrid;
     * ``stance``: a preset of ``[stances]``; ``step_height_m``, ``step_length_m``;
     * ``body_height_m`` (coxa joints above the ground), ``roll_rad``, ``pitch_rad``:
       the body pose over the feet;
@@ -683,6 +684,10 @@ class LocomotionState(Message):
     swing_legs: tuple[int, ...]
     margin_m: float
     upside_down: bool
+    cycle_s: float = 0.0
+    """The gait cycle's period T, s (0 while no gait runs)."""
+    gait_auto: bool = False
+    """The gait is the selector's choice (the operator asked for ``auto``)."""
 
 
 @message
@@ -700,6 +705,9 @@ class SwingEnded(Message):
     leg: int
     outcome: SwingOutcome
     ground_offset_m: float
+    confidence: float = 1.0
+    """The leg's contact confidence when the outcome was judged
+    (:class:`LegState`'s ``contact_confidence``)."""
 
 
 @message
@@ -761,6 +769,50 @@ class ReflexActivity(Message):
     reason: str = ""
     inhibits: tuple[str, ...] = ()
     inhibited: bool = False
+
+
+@message
+class TerrainEstimate(Message):
+    """The terrain estimator's metrics (4.2.3) over its sliding window (6.7.5).
+
+    Over the last ``window_s`` (one gait cycle while walking): ``step_height_m``, the
+    highest ground a swing met above where it expected (a foot stopped early on it, or a
+    swing blocked on its way up): the step the terrain asks for, 0 on the flat;
+    ``pitch_rad`` and ``roll_rad``, the body's mean tilt (IMU); ``obstacles``, the
+    obstacles the rangefinders saw come near (ones to step over or climb); ``bumps``, the
+    IMU's jolts (on wheels: rough ground); ``lost_supports``, the feet that found no ground
+    where expected or lost it in stance. ``tilt_known`` is False while the window holds
+    no tilt reading (no IMU: the tilt is 0 for want of one, not level)."""
+
+    window_s: float
+    step_height_m: float
+    pitch_rad: float
+    roll_rad: float
+    obstacles: int
+    bumps: int
+    lost_supports: int
+    tilt_known: bool = False
+
+
+@message
+class GaitChoice(Message):
+    """The gait selector's choice (Table 5.9): ``gait``, the walking gait for the terrain,
+    ``wheels`` whether riding would do; ``reason`` what decided it. The coordinator takes
+    ``gait`` while the operator asks for the ``auto`` gait (its ``gait_choice`` input)."""
+
+    gait: str
+    wheels: bool
+    reason: str
+
+
+@message
+class GaitSelected(Event):
+    """The gait selector moved from ``before`` to ``after`` (``reason``: the metric and its
+    threshold, or the calm that allowed a return)."""
+
+    before: str
+    after: str
+    reason: str
 
 
 @message

@@ -67,6 +67,7 @@ from whexar.config.motion import (
     GaitThresholds,
     LocomotionSpec,
     StanceSpec,
+    TerrainSpec,
     Trajectory,
 )
 from whexar.config.parts import (
@@ -114,6 +115,7 @@ __all__ = [
     "ServoModelSpec",
     "StanceSpec",
     "StickSpec",
+    "TerrainSpec",
     "Trajectory",
     "board_baudrate",
     "config_schema",

@@ -25,11 +25,11 @@ from typing import Annotated, Final, Literal
 from pydantic import AfterValidator, Field
 
 from whexar.errors import Problem
-from whexar.kinematics.gait import GAIT_RANKING
+from whexar.kinematics.gait import AUTO_GAIT, GAIT_RANKING
 from whexar.runtime.schema import Positive, Section, format_path
 from whexar.sensors.evdev import ABS_CODES, KEY_CODES
 
-GAITS: Final = GAIT_RANKING[1:]
+GAITS: Final = (*GAIT_RANKING[1:], AUTO_GAIT)
 """The walking gaits a button may choose."""
 MODES: Final = ("walk", "ride", "hybrid")
 """The locomotion modes a button may choose (the coordinator's; a test keeps them equal)."""

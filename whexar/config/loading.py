@@ -27,6 +27,7 @@ from whexar.config.motion import (
     GaitSelectorSpec,
     LocomotionSpec,
     StanceSpec,
+    TerrainSpec,
     default_stances,
 )
 from whexar.config.parts import (
@@ -75,6 +76,7 @@ class RobotConfig(CheckedSection):
     fsr: FSRSpec = FSRSpec()
     imu: ImuSpec = ImuSpec()
     gait_selector: GaitSelectorSpec = GaitSelectorSpec()
+    terrain: TerrainSpec = TerrainSpec()
     stances: dict[str, StanceSpec] = Field(default_factory=default_stances)
     locomotion: LocomotionSpec = LocomotionSpec()
     contact: ContactSpec = ContactSpec()

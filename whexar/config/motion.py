@@ -33,19 +33,41 @@ class GaitThresholds(Section):
 
     max_step_height_mm: NonNegative
     max_tilt_deg: float = Field(gt=0, le=90, allow_inf_nan=False)
-    """Body tilt (roll or pitch) tolerated, symmetric about level."""
+    """Body pitch tolerated, symmetric about level; roll too unless ``max_roll_deg``."""
+    max_roll_deg: float | None = Field(default=None, gt=0, le=90, allow_inf_nan=False)
+    """Body roll tolerated, when it differs from pitch: 4.2.3 counts them apart, "as it
+    has different impact on the gaits"; absent: ``max_tilt_deg``."""
     max_obstacles: int | None = Field(default=None, ge=0)
     max_bumps: int | None = Field(default=None, ge=0)
     """IMU bumps counted by the terrain controller (4.2.3)."""
     max_lost_supports: int = Field(ge=0)
     """Disappeared leg supports within the window (4.2.3, 6.7.5)."""
 
+    @property
+    def roll_limit_deg(self) -> float:
+        """The roll tolerated: ``max_roll_deg``, else ``max_tilt_deg``."""
+        return self.max_tilt_deg if self.max_roll_deg is None else self.max_roll_deg
+
 
 class GaitSelectorSpec(Section):
     """Gait-selector thresholds: Table 5.9, wheel tilt raised from 7° to 20° (6.7.5)."""
 
     lost_support_window_cycles: Positive = 1.0
-    """Disappeared supports are counted over a floating window of one gait cycle (6.7.5)."""
+    """Disappeared supports are counted over a floating window of one gait cycle (6.7.5);
+    the terrain estimator's other metrics share the window."""
+    tilt_hysteresis_deg: NonNegative = 3.0
+    """A return to a less stable gait waits for the tilt to lie this far inside its limit:
+    a slope near a threshold does not make the gait flap."""
+    step_hysteresis_mm: NonNegative = 10.0
+    """… the step height this far inside it."""
+    count_hysteresis: int = Field(default=1, ge=0, le=100)
+    """… the counts (obstacles, bumps, lost supports) this many below it."""
+    min_dwell_s: NonNegative = 5.0
+    """A gait the selector chose is kept at least this long before a return: three tripod
+    cycles of 1.6 s, so that a change is walked in before it is judged."""
+    calm_s: NonNegative = 5.0
+    """… and the terrain must have stayed within the less stable gait's limits (with the
+    hysteresis) this long. A move to a more stable gait is never delayed."""
     wheels: GaitThresholds = GaitThresholds(
         max_step_height_mm=0, max_tilt_deg=20, max_obstacles=0, max_bumps=10, max_lost_supports=3
     )
@@ -78,6 +100,16 @@ class GaitSelectorSpec(Section):
             "max_lost_supports",
         )
         ranked = self.ranked()
+        for (lo_name, lo), (hi_name, hi) in itertools.pairwise(ranked):
+            if hi.max_roll_deg is not None and hi.roll_limit_deg < lo.roll_limit_deg:
+                found.append(
+                    Problem(
+                        f"{at}.{hi_name}.max_roll_deg",
+                        hi.max_roll_deg,
+                        f"at least {lo_name}'s roll limit ({lo.roll_limit_deg:g}): thresholds "
+                        f"may not fall along the ranking {' < '.join(GAIT_RANKING)}",
+                    )
+                )
         for key in keys:
             for (lo_name, lo), (hi_name, hi) in itertools.pairwise(ranked):
                 a, b = getattr(lo, key), getattr(hi, key)
@@ -94,6 +126,46 @@ class GaitSelectorSpec(Section):
                         )
                     )
         return found
+
+
+class TerrainSpec(Section):
+    """The terrain estimator's settings (4.2.3, :mod:`whexar.actors.reactive.terrain`): how it
+    turns readings into the gait selector's metrics."""
+
+    tick_s: Positive = 0.1
+    """It publishes its estimate this often: ten times in a tripod swing of 0.8 s."""
+    min_window_s: Positive = 1.0
+    """The shortest window, s: a fast gait's cycle (0.8 s) still holds two footfalls."""
+    still_window_s: Positive = 2.0
+    """The window while no gait runs (riding, standing): the cycle of a slow walk."""
+    min_offset_mm: NonNegative = 10.0
+    """A swing that met ground less than this above where it expected met the flat
+    (the foot's compliance and the ground's roughness): no step asked."""
+    bump_g: float = Field(default=0.5, gt=0, lt=5, allow_inf_nan=False)
+    """An IMU reading further than this from 1 g is a jolt (4.2.3's bumps): twice the
+    accelerometer's plausibility band (0.2 g), so a tilt is no bump."""
+    bump_gap_s: Positive = 0.1
+    """Jolts closer than this to the last are the same bump."""
+    obstacle_near_m: Positive = 0.4
+    """A rangefinder reading nearer than this sees an obstacle ahead: within two steps of
+    the front feet (the rangefinders look forward from the front legs, 5.3.5)."""
+    obstacle_clear_m: Positive = 0.6
+    """… which is counted again only once the reading was beyond this (hysteresis)."""
+    lost_confidence: float = Field(default=0.5, gt=0, lt=1, allow_inf_nan=False)
+    """A foot counts as a lost support when its contact estimate believes the loss at
+    least this much (a dead force sensor's "no contact" while the current and the stance
+    say load does not count)."""
+
+    def problems(self, at: str) -> list[Problem]:
+        if self.obstacle_clear_m <= self.obstacle_near_m:
+            return [
+                Problem(
+                    f"{at}.obstacle_clear_m",
+                    self.obstacle_clear_m,
+                    f"beyond obstacle_near_m ({self.obstacle_near_m:g}) for hysteresis",
+                )
+            ]
+        return []
 
 
 # --------------------------------------------------------------------------- contact

@@ -30,6 +30,9 @@ PHASE_TOLERANCE: Final = 1e-9
 GAIT_RANKING: Final = ("wheels", "tripod", "tetrapod", "ripple", "wave")
 """Locomotion modes from flat to difficult terrain, least to most stable (Žák 2023, 5.4,
 Gait Selector, Table 5.9). Riding on wheels (rank 0) has no phase table."""
+AUTO_GAIT: Final = "auto"
+"""The gait a command names to let the gait selector choose among the walking gaits
+(:mod:`whexar.actors.reactive.selector`)."""
 
 
 @dataclass(frozen=True)
@@ -219,6 +222,7 @@ def stability_rank(name: str) -> int:
 
 
 __all__ = [
+    "AUTO_GAIT",
     "GAITS",
     "GAIT_RANKING",
     "PHASE_TOLERANCE",

@@ -124,6 +124,16 @@ TIME_LABEL: Final = "time (s)"
 GOAL_COLOUR: Final = "#d95f02"
 PRESENT_COLOUR: Final = "#1b9e77"
 SWING_COLOUR: Final = "#1f3b73"
+REFLEX_COLOUR: Final = "#d6604d"
+"""A reflex's active spells on the gait diagram."""
+GAIT_COLOURS: Final = {
+    "wheels": "#9ecae1",
+    "tripod": "#a1d99b",
+    "tetrapod": "#fdd49e",
+    "ripple": "#fdae6b",
+    "wave": "#e6550d",
+}
+"""The gait walked, least to most stable (Table 5.9's ranking), on the gait diagram."""
 ACTIVITY_COLOURS: Final = {
     "seated": "#bbbbbb",
     "standing_up": "#d9c9a3",
@@ -186,23 +196,50 @@ def draw_gait(
     legs: Sequence[int] | None = None,
     time_label: str = TIME_LABEL,
     title: str = "Gait diagram: dark bars = leg in swing; background = coordinator's activity",
+    gaits: Sequence[tuple[float, float, str]] = (),
+    reflexes: Mapping[str, Sequence[tuple[float, float]]] | None = None,
 ) -> Path:
     """The gait diagram (thesis Fig. 3.3): each leg's swings as bars, one row per leg (top:
-    the first of ``legs``), over bands of the coordinator's activity."""
+    the first of ``legs``), over bands of the coordinator's activity; above them, when
+    given, a row of the gait walked (``gaits``: start, end, gait or ``wheels``) and a row
+    per reflex with its active spells (``reflexes``: name → (start, end))."""
     from matplotlib.patches import Patch
 
     rows = list(range(N_LEGS)) if legs is None else list(legs)
+    named = sorted(reflexes or {})
+    top = [*named, *(["gait"] if gaits else [])]
     n = len(rows)
-    fig, ax = new_figure(WIDTH_IN, max(GAIT_MIN_HEIGHT_IN, figure_height(n, 0.5, 1.0)))
+    total = n + len(top)
+    fig, ax = new_figure(WIDTH_IN, max(GAIT_MIN_HEIGHT_IN, figure_height(total, 0.5, 1.0)))
     for row, leg in enumerate(rows):
         bars = [(t0, t1 - t0) for t0, t1 in swings.get(leg, ())]
         ax.broken_barh(bars, (n - 1 - row + 0.15, 0.7), color=SWING_COLOUR, zorder=2)
     for t0, t1, activity in activities:
         ax.axvspan(t0, t1, color=ACTIVITY_COLOURS.get(activity, "#ffffff"), lw=0, zorder=0)
+    if gaits:
+        y = n + 0.15
+        for t0, t1, gait in gaits:
+            colour = GAIT_COLOURS.get(gait, "#999999")
+            ax.broken_barh([(t0, t1 - t0)], (y, 0.7), color=colour, zorder=2)
+            ax.text(t0, y + 0.35, f" {gait}", va="center", fontsize=7, clip_on=True, zorder=3)
+    for k, name in enumerate(named):
+        spells = [(t0, max(t1 - t0, 0.05)) for t0, t1 in (reflexes or {})[name]]
+        y = n + (1 if gaits else 0) + k + 0.15
+        ax.broken_barh(spells, (y, 0.7), color=REFLEX_COLOUR, zorder=2)
+    if top:
+        ax.axhline(n, color="#444444", lw=0.8, zorder=1)
     ax.set_xlim(*window)
-    ax.set_ylim(0, n)
-    ax.set_yticks([n - 1 - row + 0.5 for row in range(n)])
-    ax.set_yticklabels([f"{LEG_NAMES[leg]} ({leg})" for leg in rows])
+    ax.set_ylim(0, total)
+    labels = [f"{LEG_NAMES[leg]} ({leg})" for leg in rows]
+    ticks = [n - 1 - row + 0.5 for row in range(n)]
+    if gaits:
+        ticks.append(n + 0.5)
+        labels.append("gait")
+    for k, name in enumerate(named):
+        ticks.append(n + (1 if gaits else 0) + k + 0.5)
+        labels.append(name)
+    ax.set_yticks(ticks)
+    ax.set_yticklabels(labels)
     ax.set_xlabel(time_label)
     ax.set_title(title)
     seen = dict.fromkeys(a for _, _, a in activities)

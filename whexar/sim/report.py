@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 
 from whexar import _json
-from whexar.actors.messages import MotionCommand
+from whexar.actors.messages import GaitSelected, MotionCommand
 from whexar.kinematics.stability import convex_hull
 from whexar.record import plots
 from whexar.record.plots import new_figure, save_figure
@@ -270,7 +270,8 @@ def plot_path(result: SimResult, path: Path, *, title: str = "") -> Path:
 
 
 def plot_gait(result: SimResult, path: Path, *, window: tuple[float, float] | None = None) -> Path:
-    """The gait diagram: each leg's swings as bars (Fig. 3.3), the activity as a band."""
+    """The gait diagram: each leg's swings as bars (Fig. 3.3), the activity as a band, the
+    gait walked in a row above them and each reflex's active spells above that."""
     end = result.samples[-1].t if result.samples else result.duration_s
     return plots.draw_gait(
         swing_intervals(result),
@@ -278,6 +279,8 @@ def plot_gait(result: SimResult, path: Path, *, window: tuple[float, float] | No
         path,
         window=window if window is not None else (0.0, end),
         time_label=TIME_LABEL,
+        gaits=result.series.gait_intervals(),
+        reflexes=result.series.reflex_intervals(),
     )
 
 
@@ -335,6 +338,7 @@ FIGURES: Final = {
     "cost_of_transport": ("cost of transport (over the progress)", "", "{:.2f}"),
     "min_stability_margin_m": ("minimum stability margin", "m", "{:.3f}"),
     "gait_changes": ("gait changes", "", "{}"),
+    "reflex_activations": ("reflex activations", "", "{}"),
     "falls": ("falls", "", "{}"),
     "sim_seconds": ("simulated time", "s", "{:.1f}"),
     "stopped_by": ("stopped early by", "", "{}"),
@@ -353,10 +357,28 @@ def format_figure(key: str, value: object) -> str:
     return f"{fmt.format(value)} {unit}".strip()
 
 
+def reactive_timeline(result: SimResult) -> list[tuple[float, str]]:
+    """What the reactive layer did, in time order: each gait the selector chose and why,
+    each reflex's active spells."""
+    out = [
+        (e.t, f"gait selector: {e.before} → {e.after} ({e.reason})")
+        for e in result.events
+        if isinstance(e, GaitSelected)
+    ]
+    for name, spells in result.series.reflex_intervals().items():
+        out += [(t0, f"reflex {name}: active for {t1 - t0:.1f} s") for t0, t1 in spells]
+    return sorted(out)
+
+
 def summary_markdown(
-    summary: dict[str, Any], found: Sequence[Segment], *, title: str = "Simulated run"
+    summary: dict[str, Any],
+    found: Sequence[Segment],
+    *,
+    title: str = "Simulated run",
+    timeline: Sequence[tuple[float, str]] = (),
 ) -> str:
-    """``summary.md``: the figures and the segments as Markdown tables."""
+    """``summary.md``: the figures and the segments as Markdown tables, then the reactive
+    layer's ``timeline`` (:func:`reactive_timeline`)."""
     lines = [f"# {title}", "", "| figure | value |", "|---|---|"]
     for key, value in summary.items():
         if key == "stopped_by" and value is None:
@@ -377,9 +399,16 @@ def summary_markdown(
             f"| {s.t0:.1f} | {s.t1:.1f} | {s.label} | {s.progress_m:.3f} | {s.distance_m:.3f} "
             f"| {s.energy_j:.0f} | {s.mean_power_w:.1f} | {cot} |"
         )
+    lines += ["", "## The reactive layer", ""]
+    if timeline:
+        lines += ["| t (s) | what |", "|---|---|"]
+        lines += [f"| {t:.1f} | {what} |" for t, what in timeline]
+    else:
+        lines.append("No gait chosen by the selector, no reflex active.")
     lines += [
         "",
-        "Plots: `path.png`, `gait.png`, `joints.png`, `current.png`, `cot.png`.",
+        "Plots: `path.png`, `gait.png` (with the gait walked and the reflexes' spells), "
+        "`joints.png`, `current.png`, `cot.png`.",
         "",
     ]
     return "\n".join(lines)
@@ -421,7 +450,10 @@ def write_report(
     json_path.write_text(_json.dumps(doc, indent=2) + "\n", encoding="utf-8")
     md_path = out / "summary.md"
     heading = title if not description else f"{title}\n\n{description}"
-    md_path.write_text(summary_markdown(summary, found, title=heading), encoding="utf-8")
+    md_path.write_text(
+        summary_markdown(summary, found, title=heading, timeline=reactive_timeline(result)),
+        encoding="utf-8",
+    )
     return [*written, json_path, md_path]
 
 
@@ -438,6 +470,7 @@ __all__ = [
     "plot_gait",
     "plot_joints",
     "plot_path",
+    "reactive_timeline",
     "segments",
     "summary_markdown",
     "swing_intervals",

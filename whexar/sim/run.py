@@ -233,6 +233,7 @@ class SimResult:
             else None,
             "min_stability_margin_m": min(margins) if margins else None,
             "gait_changes": sum(1 for c in changes if c.what == "gait"),
+            "reflex_activations": sum(len(v) for v in self.series.reflex_intervals().values()),
             "falls": falls,
             "sim_seconds": ran,
             "stopped_by": self.run.stop_reason if ran < self.duration_s - 1e-6 else None,

@@ -17,6 +17,8 @@ pass, only what the summary, the report and the campaign metrics read:
   Current| (NaN where it was not read), as flat float arrays;
 * per force-sensor reading (:class:`~whexar.actors.messages.LegLoads`) the six
   legs' contact flags, one byte;
+* each reflex's active spells as (start, end) intervals, from its
+  :class:`~whexar.actors.messages.ReflexActivity`;
 * every runtime event (they are few), and the latest activity and event for the
   progress line.
 
@@ -35,7 +37,14 @@ from typing import Any, Final, NoReturn
 
 import numpy as np
 
-from whexar.actors.messages import JointGoals, LegLoads, LegState, LocomotionState, ServoStates
+from whexar.actors.messages import (
+    JointGoals,
+    LegLoads,
+    LegState,
+    LocomotionState,
+    ReflexActivity,
+    ServoStates,
+)
 from whexar.errors import UsageError
 from whexar.robot import LEG_NAMES, N_LEGS
 from whexar.runtime.harness import MessageLog
@@ -147,6 +156,9 @@ class RunSeries:
     _swings: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
     _swing_from: dict[int, float] = field(default_factory=dict)
     _legs_t: float = 0.0
+    _reflexes: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+    _reflex_from: dict[str, float] = field(default_factory=dict)
+    _last_t: float = 0.0
     quiet: tuple[type[Message], ...] = _QUIET
     """Events too routine for :attr:`latest_event`."""
 
@@ -176,7 +188,10 @@ class RunSeries:
             self._contacts.append(sum(1 << leg for leg, c in enumerate(msg.contacts) if c))
         elif isinstance(msg, LocomotionState):
             self.locomotion.add(msg)
+            self._last_t = msg.t
             self.latest_activity = f"{msg.activity} {msg.mode}/{msg.gait}"
+        elif isinstance(msg, ReflexActivity):
+            self._reflex_activity(msg)
         elif isinstance(msg, Event):
             if channel == EVENTS_CHANNEL:
                 self.events.append(msg)
@@ -216,6 +231,14 @@ class RunSeries:
         elif msg.leg in self._swing_from:
             self._swings.setdefault(msg.leg, []).append((self._swing_from.pop(msg.leg), msg.t))
 
+    def _reflex_activity(self, msg: ReflexActivity) -> None:
+        name = msg.reflex.removeprefix("reflex-")
+        self._reflexes.setdefault(name, [])
+        if msg.active:
+            self._reflex_from.setdefault(name, msg.t)
+        elif name in self._reflex_from:
+            self._reflexes[name].append((self._reflex_from.pop(name), msg.t))
+
     def _joint_goals(self, msg: JointGoals) -> None:
         if msg.source != f"leg-{LEG_NAMES[TRACED_LEG]}":
             return
@@ -243,6 +266,30 @@ class RunSeries:
                 if out:
                     out[-1] = (out[-1][0], p.t, out[-1][2])
                 out.append((p.t, p.t, p.activity))
+        return out
+
+    def gait_intervals(self) -> list[tuple[float, float, str]]:
+        """(start, end, how it moves) of the coordinator: its gait while it walks (or steps
+        the hybrid gait), ``wheels`` while it rides; nothing while it stands or sits."""
+        runs: list[tuple[float, float, str]] = []
+        for p in self.locomotion:
+            if p.activity == "riding":
+                what = "wheels"
+            else:
+                what = p.gait if p.activity in ("walking", "hybrid") else ""
+            if runs:
+                runs[-1] = (runs[-1][0], p.t, runs[-1][2])
+            if not runs or runs[-1][2] != what:
+                runs.append((p.t, p.t, what))
+        return [r for r in runs if r[2]]
+
+    def reflex_intervals(self) -> dict[str, list[tuple[float, float]]]:
+        """By reflex (its name without ``reflex-``), the (start, end) times it was active;
+        one still active ends at the last coordinator state. A reflex that never acted
+        has an empty list."""
+        out = {name: list(found) for name, found in self._reflexes.items()}
+        for name, t0 in self._reflex_from.items():
+            out[name].append((t0, max(t0, self._last_t)))
         return out
 
     def joint_traces(self, leg: int = TRACED_LEG) -> dict[int, tuple[Trace, Trace]]:

@@ -105,7 +105,7 @@ def test_a_value_of_the_wrong_type_names_the_expected_type(tmp_path: Path) -> No
     assert "5 problems" in text
     assert "line 1: vx_m_s = 'fast': a finite number or null" in text
     assert "line 2: stop = 1: true or false" in text
-    assert "line 2: gait = 'gallop': one of tripod, tetrapod, ripple, wave or null" in text
+    assert "line 2: gait = 'gallop': one of tripod, tetrapod, ripple, wave, auto or null" in text
     assert "line 3: vy_m_s = True: a finite number or null" in text
     assert "line 3: upside_down = 'yes': true, false or null" in text
 
@@ -373,11 +373,12 @@ def test_x_stops_and_quits() -> None:
 
 
 def test_number_keys_choose_the_gait_and_letters_the_mode() -> None:
-    for key, gait in zip("1234", ("tripod", "tetrapod", "ripple", "wave"), strict=True):
+    gaits = ("tripod", "tetrapod", "ripple", "wave", "auto")
+    for key, gait in zip("12340", gaits, strict=True):
         state, command = press(key)
         assert command.gait == gait == state.gait
         assert command.vx_m_s is None
-    assert GAITS == ("tripod", "tetrapod", "ripple", "wave")
+    assert gaits == GAITS
     for key, mode in (("r", "ride"), ("k", "walk"), ("h", "hybrid"), ("H", "hybrid")):
         state, command = press(key)
         assert command.mode == mode == state.mode

@@ -226,10 +226,20 @@ def test_a_reflex_whose_inputs_a_trimmed_graph_no_longer_publishes_is_left_out()
 
 
 def test_a_reflex_that_reads_the_imus_samples_has_them_published(tmp_path: Path) -> None:
-    assert "imu" not in robot_graph()["channels"]  # nobody reads them: not published
+    from whexar.actors.graph import ROBOT_GRAPH
+
+    # A graph whose terrain estimator does not read the IMU's samples leaves them out…
+    graph = tmp_path / "walk.toml"
+    text = ROBOT_GRAPH.read_text()
+    for wired in ('outputs = { tilt = "tilt", samples = "imu" }', ' imu = "imu",'):
+        assert wired in text
+        text = text.replace(wired, 'outputs = { tilt = "tilt" }' if "samples" in wired else "")
+    graph.write_text(text.replace('[channels.imu]\nmessage = "ImuSample"\npolicy = "queue"\n', ""))
+    assert "imu" not in robot_graph(path=graph)["channels"]  # nobody reads them
+    # …until a reflex reads them.
     config = tmp_path / "hold.toml"
     config.write_text('[[reflexes]]\ntype = "heading-hold"\n')
-    doc = robot_graph(config=config)
+    doc = robot_graph(config=config, path=graph)
     (imu,) = [a for a in doc["actors"] if a["name"] == "imu"]
     assert imu["outputs"]["samples"] == "imu"
     assert doc["channels"]["imu"] == {"message": "ImuSample", "policy": "queue"}

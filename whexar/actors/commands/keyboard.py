@@ -34,7 +34,7 @@ STATUS_PERIOD_S: Final = 0.1
 """Shortest time between two redraws of the status line for a new state (keys redraw at once)."""
 
 HELP: Final = (
-    "keys: arrows/WASD speed and turn, Q/E sideways, 1-4 tripod/tetrapod/ripple/wave, "
+    "keys: arrows/WASD speed and turn, Q/E sideways, 1-4 tripod/tetrapod/ripple/wave, 0 auto, "
     "k walk, r ride, h hybrid, +/- step height, f flip, space stop, x quit, Ctrl-C stop the run"
 )
 
@@ -104,8 +104,8 @@ def key_command(
     * ↑/``w``, ↓/``s``: forward speed ±0.02 m/s; ←/``a``, →/``d``: turn rate
       ±0.1 rad/s (left is positive); ``q``, ``e``: sideways ±0.02 m/s (left,
       right). Each sends the whole velocity.
-    * ``1``–``4``: gait tripod, tetrapod, ripple, wave; ``k`` walk, ``r`` ride,
-      ``h`` hybrid.
+    * ``1``–``4``: gait tripod, tetrapod, ripple, wave, ``0``: the gait selector's;
+      ``k`` walk, ``r`` ride, ``h`` hybrid.
     * ``+`` (or ``=``), ``-``: step height ±0.01 m; ``f``: turn over (upside_down).
     * space: stop — velocity zero and ``stop``; ``x``: the same, and ``quit``.
 
@@ -131,8 +131,8 @@ def key_command(
             t=t, source=source, vx_m_s=0.0, vy_m_s=0.0, yaw_rate_rad_s=0.0, stop=True
         )
         return state, command
-    if name in ("1", "2", "3", "4"):
-        gait = GAITS[int(name) - 1]
+    if name in ("1", "2", "3", "4", "0"):
+        gait = GAITS[int(name) - 1]  # "0": the last, auto
         return dataclasses.replace(current, gait=gait), MotionCommand(t=t, source=source, gait=gait)
     if name in _MODE_KEYS:
         mode = _MODE_KEYS[name]

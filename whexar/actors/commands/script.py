@@ -25,7 +25,7 @@ from pydantic import AfterValidator
 
 from whexar.actors.messages import MotionCommand
 from whexar.errors import MISSING, ConfigError, Problem
-from whexar.kinematics.gait import GAIT_RANKING
+from whexar.kinematics.gait import AUTO_GAIT, GAIT_RANKING
 from whexar.runtime.schema import read_text
 
 KEYWORDS: Final = ("stdin", "keyboard", "gamepad", "none")
@@ -34,8 +34,9 @@ KEYWORDS: Final = ("stdin", "keyboard", "gamepad", "none")
 GAMEPAD_PREFIX: Final = "gamepad:"
 """``source = "gamepad:DEVICE"``: the gamepad on DEVICE (a path, or ``pipe:NAME``)."""
 
-GAITS: Final = GAIT_RANKING[1:]
-"""The walking gaits a command may choose (rank 0, riding on wheels, is a mode)."""
+GAITS: Final = (*GAIT_RANKING[1:], AUTO_GAIT)
+"""The gaits a command may choose: the walking ones (rank 0, riding on wheels, is a mode)
+and ``auto``, the gait selector's choice."""
 
 MODES: Final = ("walk", "ride", "hybrid")
 """The locomotion modes a command may choose."""

@@ -4,7 +4,7 @@ Theory of operation
 -------------------
 The actor wakes on every :class:`ServoStates`, like the legs, takes what
 arrived on its other inputs — motion commands, the legs' states, the newest
-body tilt, the reflexes' requests — hands it to its
+body tilt, the reflexes' requests, the gait selector's choice — hands it to its
 :class:`~whexar.actors.locomotion.planner.LocomotionPlanner`, and publishes
 what the planner returns, in its order: events on the events channel,
 :class:`StepCommand` s on ``steps``, :class:`BodyMotion` on ``motion``,
@@ -28,6 +28,7 @@ from whexar.actors.locomotion.planner import SIT_MARGIN_S, LocomotionPlanner
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,
+    GaitChoice,
     LegState,
     LocomotionState,
     MotionCommand,
@@ -56,6 +57,8 @@ class Coordinator(Actor):
     tilt = Input(BodyTilt, optional=True)
     requests = Input(ReflexRequest, optional=True)
     """What the reflexes ask: a higher step, a halt, a heading correction, to sit down."""
+    gait_choice = Input(GaitChoice, optional=True)
+    """The gait selector's choice, taken while the operator's gait is ``auto``."""
     steps = Output(StepCommand)
     motion = Output(BodyMotion)
     state = Output(LocomotionState, optional=True)
@@ -86,6 +89,7 @@ class Coordinator(Actor):
         legs_in = self.legs if self.legs.connected else None
         tilt_in = self.tilt if self.tilt.connected else None
         requests_in = self.requests if self.requests.connected else None
+        choice_in = self.gait_choice if self.gait_choice.connected else None
         self.ready()
         try:
             async for states in self.servo_state:
@@ -97,6 +101,7 @@ class Coordinator(Actor):
                         tilt=tilt_in.latest() if tilt_in is not None else None,
                         tilt_wired=tilt_in is not None,
                         requests=requests_in.drain() if requests_in is not None else (),
+                        gait_choice=choice_in.latest() if choice_in is not None else None,
                     )
                 )
         finally:

@@ -17,7 +17,7 @@ from typing import Final
 
 from whexar.actors.messages import CommandClamped, CommandRefused, MotionCommand
 from whexar.config import RobotConfig
-from whexar.kinematics.gait import GAITS
+from whexar.kinematics.gait import AUTO_GAIT, GAITS
 from whexar.runtime.messages import Event
 
 MODES: Final = ("walk", "ride", "hybrid")
@@ -107,8 +107,8 @@ def take_command(
         value = getattr(cmd, key)
         if value is not None and not (isinstance(value, int | float) and math.isfinite(value)):
             return refuse(f"{key} = {value!r}: not a finite number")
-    if cmd.gait is not None and cmd.gait not in GAITS:
-        return refuse(f"unknown gait {cmd.gait!r}; allowed: {', '.join(GAITS)}")
+    if cmd.gait is not None and cmd.gait not in GAITS and cmd.gait != AUTO_GAIT:
+        return refuse(f"unknown gait {cmd.gait!r}; allowed: {', '.join(GAITS)}, {AUTO_GAIT}")
     if cmd.mode is not None and cmd.mode not in MODES:
         return refuse(f"unknown mode {cmd.mode!r}; allowed: {', '.join(MODES)}")
     if cmd.stance is not None and cmd.stance not in cfg.stances:

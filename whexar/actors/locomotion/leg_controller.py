@@ -272,6 +272,7 @@ class LegController:
                 leg=self.leg,
                 outcome=outcome,
                 ground_offset_m=self.foot[2] - step.target[2],
+                confidence=self.confidence,
             )
         )
 

@@ -44,6 +44,7 @@ from whexar.actors.locomotion.settle import SETTLE_PERIOD_S, settled
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,
+    GaitChoice,
     LegState,
     LocomotionState,
     MotionCommand,
@@ -51,7 +52,7 @@ from whexar.actors.messages import (
     ServoStates,
 )
 from whexar.config import RobotConfig
-from whexar.kinematics.gait import GAITS
+from whexar.kinematics.gait import AUTO_GAIT, GAITS
 from whexar.robot import N_LEGS
 from whexar.runtime.messages import Message
 
@@ -87,6 +88,8 @@ class LocomotionPlanner(Engines):
         self.stop_reason = "a safe stop is under way"
         """Why commands are refused while :attr:`stopping`."""
         self.margin_m = math.inf
+        self.gait_choice: str = self.loco.gait
+        """The gait selector's latest choice: the gait while the operator asks for auto."""
 
     # ----------------------------------------------------------------- the cycle
 
@@ -99,11 +102,12 @@ class LocomotionPlanner(Engines):
         tilt: BodyTilt | None = None,
         tilt_wired: bool = False,
         requests: Iterable[ReflexRequest] = (),
+        gait_choice: GaitChoice | None = None,
     ) -> list[Message]:
         """One control cycle (module docstring); ``tilt_wired`` says whether a tilt input
         exists at all (without one, the trochanters follow the commanded pitch only);
-        ``requests`` are the reflexes' (:mod:`.asks`). Returns what the coordinator says,
-        in order."""
+        ``requests`` are the reflexes' (:mod:`.asks`), ``gait_choice`` the gait selector's
+        latest. Returns what the coordinator says, in order."""
         out = self.out = []
         self.t = t = states.t
         dt = 0.0 if self.last_t is None else t - self.last_t
@@ -118,6 +122,8 @@ class LocomotionPlanner(Engines):
         for req in requests:
             if self.asks.take(req):
                 self._sit_for(req)
+        if gait_choice is not None and gait_choice.gait in GAITS:
+            self.gait_choice = gait_choice.gait
         for cmd in commands:
             if self.stopping:
                 out.append(refused(cmd, self.stop_reason, t=self.t, source=self.name))
@@ -221,13 +227,19 @@ class LocomotionPlanner(Engines):
 
     # ----------------------------------------------------------------- what next
 
+    def wanted_gait(self) -> str:
+        """The gait to walk: the operator's, or the selector's while the operator's is auto."""
+        g = self.want.gait
+        return self.gait_choice if g == AUTO_GAIT else g
+
     def _next_script(self) -> Script | None:
         """The wanted state differs from the present one: the script that bridges them."""
         w = self.want
+        gait = self.wanted_gait()
         needs_rest = (
             w.upside_down != self.upside_down
             or w.mode != self.mode
-            or (w.gait != self.gait.name and self.mode == w.mode == "walk")
+            or (gait != self.gait.name and self.mode == w.mode == "walk")
             or (w.stance != self.stance_name and w.mode != "ride")
             or w.stop
         )
@@ -244,16 +256,16 @@ class LocomotionPlanner(Engines):
         if w.upside_down != self.upside_down:
             self.steer = False
             return self.flip()
-        if w.gait != self.gait.name and self.mode == w.mode == "walk":
-            self._change_gait(w.gait)
+        if gait != self.gait.name and self.mode == w.mode == "walk":
+            self._change_gait(gait)
             return None  # the next start places the feet for the new gait
         if w.mode != self.mode:
             self.steer = False
             stance = self.loco.ride_stance if w.mode == "ride" else w.stance
             if w.mode == "hybrid" and self.gait.name != self.loco.hybrid_gait:
                 self._change_gait(self.loco.hybrid_gait)
-            if w.mode == "walk" and self.gait.name != w.gait:
-                self._change_gait(w.gait)
+            if w.mode == "walk" and self.gait.name != gait:
+                self._change_gait(gait)
             if w.mode == "hybrid":
                 return self.enter_hybrid(stance)
             return self.change_stance(stance, w.mode)
@@ -371,6 +383,8 @@ class LocomotionPlanner(Engines):
                 swing_legs=swing,
                 margin_m=self.margin_m,
                 upside_down=self.upside_down,
+                cycle_s=self.cycle_s if self.phase_running else 0.0,
+                gait_auto=w.gait == AUTO_GAIT,
             )
         )
 

@@ -5,12 +5,16 @@ Today: the plug-in interface — :class:`Reflex` (a reflex's policy: declared in
 validated ``Params``, a priority, what it inhibits), :class:`ReflexActor` (the shell
 that runs one) and ``[[reflexes]]`` (:func:`add_reflexes`: written in the graph file or
 the robot configuration, found by class path or the ``whexar.reflexes`` entry points);
-docs/extending.md walks through one.
+docs/extending.md walks through one. The terrain estimator (:mod:`.terrain`, 4.2.3)
+and the gait selector (:mod:`.selector`, Table 5.9), run by
+:class:`TerrainEstimatorActor` and :class:`GaitSelectorActor`: the coordinator walks
+the selector's gait while the operator's gait is ``auto``. The reflexes' shared
+contact estimate is each leg's (:mod:`whexar.kinematics.contact`), in its
+:class:`~whexar.actors.messages.LegState`.
 
-What will live here, one actor each, each a thin shell around a plain class (its policy,
-tested directly): the reflexes of the thesis (trochanter, tarsus, stepping, elevator,
-searching, obstacle, battery) and beyond it (heading hold, a lost servo reported), one
-contact estimate per leg, the terrain estimator and the gait selector.
+What will live here too, one actor each, each a thin shell around a plain class (its
+policy, tested directly): the rest of the thesis's reflexes (trochanter, tarsus,
+stepping, searching, obstacle) and a lost servo reported.
 
 How a reflex plugs in — no file of the core changes:
 
@@ -53,6 +57,7 @@ from whexar.actors.reactive.reflex import (
     check_params,
     resolve_reflex,
 )
+from whexar.actors.reactive.selection import GaitSelectorActor, TerrainEstimatorActor
 from whexar.actors.reactive.shell import ReflexActor
 
 __all__ = [
@@ -62,10 +67,12 @@ __all__ = [
     "REQUESTS",
     "STREAMS",
     "Command",
+    "GaitSelectorActor",
     "Reflex",
     "ReflexActor",
     "ReflexParams",
     "Shutdown",
+    "TerrainEstimatorActor",
     "add_reflexes",
     "check_params",
     "entry_name",
