@@ -620,6 +620,10 @@ class StepCommand(Message):
       path, lifted by ``height_m`` on the way (0: slide, for body height changes);
     * ``"hold"``: keep the foot where it is.
 
+    ``search_depth_m`` (a swing): a foot that found no ground where expected searches
+    down this far for it (the searching reflex's, 4.2.2), the stance going on from
+    where it finds it; 0: it stays where the ground was expected.
+
     The wheels take their orders from :class:`BodyMotion`, every cycle.
     """
 
@@ -631,6 +635,7 @@ class StepCommand(Message):
     height_m: float = 0.0
     trajectory: str = "parabola"
     duty_factor: float = 0.5
+    search_depth_m: float = 0.0
 
 
 @message
@@ -663,6 +668,10 @@ class LegState(Message):
     load: tuple[float | None, float | None]
     ik_ok: bool = True
     contact_confidence: float = 1.0
+    foot_error_m: float | None = None
+    """How far the foot is from where the goals sent put it (FK of the present angles
+    against FK of the goals): the servos' tracking error at the foot — a leg pushed, held
+    or snagged away from its goal (the stepping reflex's signal, 6.7.1)."""
 
 
 @message
@@ -741,7 +750,13 @@ class ReflexRequest(Message):
     * ``yaw_rate_rad_s``: add this to the commanded turn rate while the body translates
       (heading hold); 0 withdraws;
     * ``sit_down``: sit down and stay seated (the battery reflex, 5.3.1): the operator's
-      commands are refused from then on.
+      commands are refused from then on;
+    * ``search_depth_m``: swings search down this far for ground they do not find where
+      expected (the searching reflex, 4.2.2); 0 withdraws;
+    * ``restep_leg``: step that leg, once, to its neutral point moved by
+      ``restep_offset_m`` (x, y in the body frame): the body halts, the leg swings
+      there (searching as the swings do), the walk goes on (the stepping and searching
+      reflexes, 6.7.1, 6.7.3). One at a time: a request while one is pending replaces it.
 
     The operator's command stays what the robot wants; the requests bend it while they
     last. ``reason`` says why, in a few words (the coordinator's events repeat it)."""
@@ -753,6 +768,9 @@ class ReflexRequest(Message):
     yaw_rate_rad_s: float | None = None
     sit_down: bool = False
     reason: str = ""
+    search_depth_m: float | None = None
+    restep_leg: int | None = None
+    restep_offset_m: tuple[float, float] = (0.0, 0.0)
 
 
 @message
@@ -813,6 +831,28 @@ class GaitSelected(Event):
     before: str
     after: str
     reason: str
+
+
+@message
+class Restepped(Event):
+    """The coordinator stepped leg ``leg`` again at reflex ``reflex``'s request, to
+    ``target`` (body frame), or could not (``done`` False, ``reason``)."""
+
+    leg: int
+    reflex: str
+    target: Vec3
+    done: bool
+    reason: str = ""
+
+
+@message
+class NoFoothold(Event):
+    """Leg ``leg`` found no ground within ``searched_m`` below where it expected it, after
+    ``attempts`` steps around (the searching reflex): the body is held still."""
+
+    leg: int
+    searched_m: float
+    attempts: int
 
 
 @message

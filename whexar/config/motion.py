@@ -217,6 +217,10 @@ class ContactSpec(Section):
     separation_a: Positive = 0.2
     """The learnt stance and swing currents must lie this far apart to be used (the
     front legs' lie 0.8 A apart walking the tripod gait, docs/reflexes.md)."""
+    search_speed_m_s: Positive = 0.05
+    """A foot searching for ground below where it expected it goes down at this speed
+    (the searching reflex, 4.2.2): the FSR's 0.13 s lag lets it press 7 mm into what it
+    finds."""
     touchdown_s: Positive = 0.25
     """A swing that ended with no contact is judged this long after its end: ``completed``
     if contact came meanwhile, else ``no_contact`` (the FSR's contact lags the swing's end

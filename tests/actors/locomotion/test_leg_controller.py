@@ -58,6 +58,7 @@ def step(
     target: tuple[float, float, float],
     *,
     height_m: float = 0.0,
+    search_depth_m: float = 0.0,
 ) -> StepCommand:
     return StepCommand(
         t=t,
@@ -68,6 +69,7 @@ def step(
         duration_s=duration,
         target=target,
         height_m=height_m,
+        search_depth_m=search_depth_m,
     )
 
 
@@ -237,6 +239,48 @@ def test_a_swing_without_ground_ends_with_no_contact_once_touchdown_has_passed()
     after = [m.phase for m in out if isinstance(m, LegState) and m.t > 1.61]
     assert after == ["stance"] * len(after)
     assert len(after) >= 13
+
+
+def searching_swing(
+    leg: LegController, angles: list[float], ground_z: float, until: float
+) -> list[Message]:
+    """A 0.5 s swing from 1.1 s that searches 6 cm down; the femur feels the ground once
+    the foot is at ``ground_z`` or below."""
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, search_depth_m=0.06)
+    out: list[Message] = []
+    t = 1.1
+    while t < until:
+        assert leg.foot is not None
+        current = LOADED_A if t > 1.15 and leg.foot[2] <= ground_z + 1e-9 else 0.0
+        out.extend(
+            leg.cycle(t, states(t, angles, femur_a=current), steps=(cmd,) if t == 1.1 else ())
+        )
+        t = round(t + DT, 9)
+    return out
+
+
+def test_a_swing_that_searches_finds_lower_ground_and_stands_there() -> None:
+    leg, angles = placed()
+    ground = NEUTRAL[2] - 0.03  # a hole 3 cm deep under the target
+    out = searching_swing(leg, angles, ground, 3.0)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "completed"
+    assert ended.ground_offset_m == pytest.approx(-0.03, abs=0.002)
+    phases = [m.phase for m in out if isinstance(m, LegState)]
+    assert "search" in phases
+    # Judged after touchdown_s, then 0.6 s down at 0.05 m/s: at 1.6 + 0.25 + 0.6 s.
+    assert ended.t == pytest.approx(1.6 + CFG.contact.touchdown_s + 0.6, abs=0.03)
+    assert leg.foot is not None
+    assert leg.foot[2] == pytest.approx(ground, abs=0.002)  # the stance goes on from there
+
+
+def test_a_swing_that_finds_nothing_within_its_depth_ends_with_no_contact() -> None:
+    leg, angles = placed()
+    out = searching_swing(leg, angles, NEUTRAL[2] - 0.5, 4.0)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "no_contact"
+    assert ended.ground_offset_m == pytest.approx(-0.06)
+    assert ended.t == pytest.approx(1.6 + CFG.contact.touchdown_s + 0.06 / 0.05, abs=0.03)
 
 
 def test_a_contact_that_lags_the_swing_end_still_completes_it() -> None:

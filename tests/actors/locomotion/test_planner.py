@@ -23,6 +23,7 @@ from whexar.actors.messages import (
     LocomotionState,
     MotionCommand,
     ReflexRequest,
+    Restepped,
     ServoStates,
     StepCommand,
     SwingDelayed,
@@ -307,6 +308,68 @@ def test_a_raise_lifts_the_operators_step_within_the_limit() -> None:
     after = {round(h, 6) for t, h in swings if t > t0 + 4.1}
     assert raised == {round(own + 0.03, 6)}
     assert after == {round(own, 6)}
+
+
+def test_swings_search_as_deep_as_the_deepest_request() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    said = drive(
+        planner,
+        legs,
+        t0,
+        t0 + 6.0,
+        {t0: cmd(vx_m_s=0.1)},
+        {
+            t0 + 2.0: ask("reflex-a", search_depth_m=0.06),
+            t0 + 3.0: ask("reflex-b", search_depth_m=0.08),
+            t0 + 4.0: ask("reflex-b", search_depth_m=0.0),
+        },
+    )
+    swings = [(m.t, m.search_depth_m) for m in said if isinstance(m, StepCommand)]
+    swings = [(t, d) for t, d in swings if d is not None]
+    assert {d for t, d in swings if t < t0 + 2.0} == {0.0}
+    assert {d for t, d in swings if t0 + 3.1 < t < t0 + 4.0} == {0.08}
+    assert {d for t, d in swings if t > t0 + 4.1} == {0.06}
+    moves = [m for m in said if isinstance(m, StepCommand) and m.kind != "swing"]
+    assert {m.search_depth_m for m in moves} <= {0.0}  # only swings search
+
+
+def test_a_restep_halts_the_walk_steps_the_leg_and_the_walk_goes_on() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    said = drive(
+        planner,
+        legs,
+        t0,
+        t0 + 8.0,
+        {t0: cmd(vx_m_s=0.1)},
+        {t0 + 2.0: ask("reflex-stepping", restep_leg=2, restep_offset_m=(0.03, 0.0))},
+    )
+    (done,) = [m for m in said if isinstance(m, Restepped)]
+    n = planner.neutral_points[2]
+    assert (done.leg, done.reflex, done.done) == (2, "reflex-stepping", True)
+    assert done.target == pytest.approx((n[0] + 0.03, n[1], n[2]))
+    (step,) = [
+        m for m in said if isinstance(m, StepCommand) and m.leg == 2 and m.target == done.target
+    ]
+    assert step.kind == "swing"
+    assert step.t > t0 + 2.0
+    # Nothing else moved while it swung; the walk went on after.
+    others = [m for m in said if isinstance(m, StepCommand) and step.t <= m.t < done.t]
+    assert others == [step]
+    speed = {round(s.t, 2): s.twist[0] for s in states_of(said)}
+    assert speed[t0 + 7.9] == pytest.approx(0.1)
+
+
+def test_a_restep_is_refused_on_the_wheels() -> None:
+    planner, legs = standing()
+    said = drive(planner, legs, 3.0, 3.5, {}, {3.0: ask(restep_leg=0)})
+    said += drive(planner, legs, 3.5, 7.0, {3.5: cmd(mode="ride")}, {6.5: ask(restep_leg=0)})
+    refused = [m for m in said if isinstance(m, Restepped)]
+    assert [(m.done, m.reason) for m in refused] == [
+        (True, ""),
+        (False, "riding: the legs stand on their wheels"),
+    ]
 
 
 def test_a_heading_correction_turns_a_translating_body_only() -> None:

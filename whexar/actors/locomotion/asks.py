@@ -5,7 +5,9 @@ requests bend it while they last: a step at least as high as the highest
 asked for, raised by the largest raise asked (never above
 ``locomotion.max_step_height_mm``), the body held still
 while any reflex halts it, the turn rate corrected by the sum of the heading
-corrections while the body translates. Each reflex's request replaces its own
+corrections while the body translates, swings that search as deep as the deepest
+search asked, and one leg stepped again at a time (the latest request). Each
+reflex's request replaces its own
 earlier one, field by field, and is withdrawn the same way (0, ``False``), so
 two reflexes never undo each other. A plain class: the planner asks it.
 """
@@ -29,6 +31,10 @@ class Asks:
         self.turns: dict[str, float] = {}
         self.sit: tuple[str, str] | None = None
         """(reflex, why) of the first request to sit down, once made."""
+        self.depths: dict[str, float] = {}
+        """reflex → how deep its swings search."""
+        self.restep: ReflexRequest | None = None
+        """The request to step a leg again, until the planner takes it."""
 
     def take(self, req: ReflexRequest) -> bool:
         """Merge one request; True if it asks to sit down for the first time."""
@@ -53,6 +59,13 @@ class Asks:
                 self.turns[who] = req.yaw_rate_rad_s
             else:
                 self.turns.pop(who, None)
+        if req.search_depth_m is not None and math.isfinite(req.search_depth_m):
+            if req.search_depth_m > 0.0:
+                self.depths[who] = req.search_depth_m
+            else:
+                self.depths.pop(who, None)
+        if req.restep_leg is not None:
+            self.restep = req
         if req.sit_down and self.sit is None:
             self.sit = (who, req.reason)
             return True
@@ -66,6 +79,10 @@ class Asks:
         if self.turns and (vx or vy):
             w += sum(self.turns.values())
         return (vx, vy, w)
+
+    def search_depth(self) -> float:
+        """How deep a swing searches for ground it does not find: the deepest asked."""
+        return max(self.depths.values(), default=0.0)
 
     def step_height(self, wanted: float) -> float:
         """The step height to swing with: at least the highest asked, raised by the largest

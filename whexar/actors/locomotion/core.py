@@ -178,6 +178,7 @@ class PlannerCore:
                 height_m=height,
                 trajectory=self.loco.trajectory,
                 duty_factor=self.gait.duty_factor,
+                search_depth_m=self.asks.search_depth() if kind == "swing" else 0.0,
             )
         )
 

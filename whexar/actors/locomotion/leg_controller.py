@@ -148,6 +148,7 @@ class LegController:
             cfg.contact.model(self.loco.contact_current_a), self.contact_source
         )
         self.touchdown_s = cfg.contact.touchdown_s
+        self.search_speed = cfg.contact.search_speed_m_s
         self.overrides = Overrides(leg, self.loco.reflex_hold_s, self.loco.reflex_blend_s)
         self.wheel_radius = self.geometry.wheel_radius
         self.sent: list[float] = [math.inf] * N_JOINTS
@@ -209,6 +210,9 @@ class LegController:
             cmd.height_m,
             shape,
             joint_space,
+            touchdown_s=self.touchdown_s,
+            search_depth=cmd.search_depth_m if math.isfinite(cmd.search_depth_m) else 0.0,
+            search_speed=self.search_speed,
         )
         if self.foot is None:
             self.foot = list(origin)
@@ -400,7 +404,7 @@ class LegController:
         phase, progress = "idle", 0.0
         if self.step is not None and self.foot is not None:
             phase, progress, outcome = advance(
-                self.step, self.foot, self.twist, t, dt, contact, source, self.touchdown_s
+                self.step, self.foot, self.twist, t, dt, contact, source
             )
             if outcome is not None:
                 self._swing_ended(t, outcome, self.step)
@@ -448,11 +452,15 @@ class LegController:
         self, t: float, phase: str, progress: float, troch: float, contact: bool, source: str
     ) -> LegState:
         measured = None
+        error = None
         coxa, trochanter, femur, tibia, tarsus = self.measured[:_POSITIONING]
         if trochanter is None:
             trochanter = troch  # a plan that does not read it (the default) leaves its goal
         if coxa is not None and femur is not None and tibia is not None and tarsus is not None:
             q = fk_point((coxa, trochanter, femur, tibia, tarsus), self.geometry)
+            sent = self.sent[:_POSITIONING]
+            if all(math.isfinite(a) for a in sent):
+                error = math.dist(q, fk_point(sent, self.geometry))
             if self.frame.upside_down:
                 q = (q[0], -q[1], q[2])
             measured = self.frame.from_leg(q)
@@ -472,4 +480,5 @@ class LegController:
             load=self.load(),
             ik_ok=self.ik_ok,
             contact_confidence=self.confidence,
+            foot_error_m=error,
         )

@@ -236,8 +236,16 @@ class LocomotionPlanner(Engines):
         """The wanted state differs from the present one: the script that bridges them."""
         w = self.want
         gait = self.wanted_gait()
+        restep = self.asks.restep
+        if restep is not None and (self.mode != "walk" or self.upside_down):
+            self.asks.restep = None  # on the wheels, or on its back: no step to take
+            why = "riding: the legs stand on their wheels" if self.mode != "walk" else "flipped"
+            n = self.neutral_points[restep.restep_leg or 0]
+            self.say(self._restepped(restep, n, why))
+            restep = None
         needs_rest = (
-            w.upside_down != self.upside_down
+            restep is not None
+            or w.upside_down != self.upside_down
             or w.mode != self.mode
             or (gait != self.gait.name and self.mode == w.mode == "walk")
             or (w.stance != self.stance_name and w.mode != "ride")
@@ -253,6 +261,9 @@ class LocomotionPlanner(Engines):
         if not still or swinging or not self.wheels_stopped():
             return None
         self.winding_down = False
+        if restep is not None:
+            self.asks.restep = None
+            return self.restep(restep)
         if w.upside_down != self.upside_down:
             self.steer = False
             return self.flip()

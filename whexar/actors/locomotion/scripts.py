@@ -19,7 +19,10 @@ While one runs, nothing else moves the feet.
   until the servos report them there (or, where the read plan does not read
   them, as long as the turn takes at their Velocity Limit);
 * **enter hybrid**: the hybrid gait's stance, then the wheels aligned;
-* **placed for start**: the feet where a gait's phase table wants them.
+* **placed for start**: the feet where a gait's phase table wants them;
+* **restep**: one leg stepped again at a reflex's request (6.7.1, 6.7.3), a swing
+  to its neutral point moved by the offset asked, if the other five feet hold the
+  body with the stability margin; said with :class:`Restepped`.
 
 Each script sets the activity it runs under and the one it ends in.
 """
@@ -30,7 +33,7 @@ import math
 
 from whexar.actors.locomotion.activity import Activity
 from whexar.actors.locomotion.core import PLACED_M, SETTLE_S, STILL, PlannerCore, Script, Wait
-from whexar.actors.messages import Vec3
+from whexar.actors.messages import ReflexRequest, Restepped, Vec3
 from whexar.kinematics.gait import TRIPOD
 from whexar.kinematics.wheels import wheel_twist
 from whexar.robot import LEG_NAMES, N_LEGS
@@ -74,6 +77,47 @@ class Scripts(PlannerCore):
     def replace_s(self) -> float:
         """A re-placing step: as long as the slowest swing the tripod makes at full speed."""
         return max(self.loco.min_swing_s, 0.5 * self.loco.transition_s)
+
+    def restep(self, req: ReflexRequest) -> Script:
+        """Step ``req.restep_leg`` again, to its neutral point moved by the offset asked (the
+        module docstring): a swing searching as the gait's do, then the walk goes on."""
+        leg = req.restep_leg
+        assert leg is not None
+        n = self.neutral_points[leg]
+        dx, dy = req.restep_offset_m
+        target = (n[0] + dx, n[1] + dy, n[2])
+        down = [i for i in range(N_LEGS) if i != leg]
+        margin = self.margin(down)
+        minimum = self.loco.min_stability_margin_mm / 1000
+        why = ""
+        if margin < minimum:
+            why = f"lifting it would leave a margin of {margin * 1000:.0f} mm"
+        elif not self.reachable(
+            [target if i == leg else n for i, n in enumerate(self.neutral_points)]
+        ):
+            why = "out of its reach"
+        if why:
+            self.say(self._restepped(req, target, why))
+            return
+        self.set_activity(Activity.TRANSITION)
+        duration = self.replace_s()
+        self.swing_until[leg] = self.t + duration
+        self.send_step(leg, "swing", duration, target, self.asked_step_height())
+        yield self.after(duration + SETTLE_S)
+        self.say(self._restepped(req, target))
+        self.set_activity(Activity.STANDING)
+
+    def _restepped(self, req: ReflexRequest, target: Vec3, why: str = "") -> Restepped:
+        assert req.restep_leg is not None
+        return Restepped(
+            t=self.t,
+            source=self.name,
+            leg=req.restep_leg,
+            reflex=req.reflex,
+            target=target,
+            done=not why,
+            reason=why,
+        )
 
     def to_height(self, height: float) -> Script:
         """Every foot together to ``height`` below the coxa joints: the body rises or sinks."""

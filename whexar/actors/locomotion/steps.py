@@ -19,8 +19,13 @@ end of the swing it is ``completed``. A foot with no contact at the end of its
 swing is put down and judged ``touchdown_s`` later: ``completed`` if contact
 came meanwhile (a sensor lags the foot: the force sensor's frames by up to a
 tenth of a second), ``no_contact`` if none did — no ground where it was
-expected. A contact that never went away after lift-off is not believed (a
-stuck sensor). Plain functions over plain data: no time is read, nothing is sent.
+expected. A swing with a ``search_depth`` (the searching reflex's, 4.2.2)
+then searches down for the ground at ``search_speed`` (phase ``search``), the
+body carrying the foot as in stance: contact within the depth is a
+``completed`` swing whose ground lies lower (a negative ground offset), the
+stance going on from there; none is ``no_contact`` at the full depth. A
+contact that never went away after lift-off is not believed (a stuck sensor).
+Plain functions over plain data: no time is read, nothing is sent.
 """
 
 from __future__ import annotations
@@ -51,6 +56,14 @@ class Step:
     ended: bool = False
     awaiting: bool = False
     """The swing ended with no contact: its outcome waits for ``touchdown_s``."""
+    touchdown_s: float = 0.0
+    """How long a swing that ended without contact waits for one."""
+    search_depth: float = 0.0
+    """How far below the expected ground a swing then searches, m."""
+    search_speed: float = 0.0
+    """… going down at this speed, m/s."""
+    searched: float = 0.0
+    """How far it has searched so far, m."""
 
     def judged(self, contact: bool) -> SwingOutcome:
         """The outcome of a swing still awaiting its touchdown, judged now."""
@@ -66,13 +79,12 @@ def advance(
     dt: float,
     contact: bool,
     source: str,
-    touchdown_s: float = 0.0,
 ) -> tuple[str, float, SwingOutcome | None]:
     """Move ``foot`` (upright frame, in place) along ``step`` to time ``t``; ``dt`` since the
     last cycle, ``twist`` the body's, ``contact`` this cycle's reading from ``source``
-    (``"none"``: the leg senses no contact), ``touchdown_s`` how long a swing that ended
-    without contact waits for one. Returns the phase (swing, move, stance, hold), the
-    progress through the step and, when the swing's outcome is known now, that."""
+    (``"none"``: the leg senses no contact). Returns the phase (swing, move, stance, hold,
+    search), the progress through the step and, when the swing's outcome is known now,
+    that."""
     u = (t - step.start_t) / step.duration
     u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
     if step.kind == "swing" and not step.ended:
@@ -86,7 +98,7 @@ def advance(
             outcome = _adapt(step, u, contact)
             if outcome is None and step.ended:  # down with no contact: wait for it
                 step.awaiting = True
-                if touchdown_s <= 0.0:
+                if step.touchdown_s <= 0.0 and step.search_depth <= 0.0:
                     outcome = step.judged(False)
             return "swing", u, outcome
         if u >= 1.0:
@@ -111,8 +123,16 @@ def advance(
             x, y = c * x - s_ * y, s_ * x + c * y
         foot[0], foot[1] = x - vx * dt, y - vy * dt
     kind = "stance" if step.kind in ("swing", "stance") else "hold"
-    if step.awaiting and (contact or t - (step.start_t + step.duration) >= touchdown_s):
-        return kind, u, step.judged(contact)
+    if step.awaiting:
+        if contact:
+            return kind, u, step.judged(True)
+        if t - (step.start_t + step.duration) >= step.touchdown_s:
+            if step.searched >= step.search_depth:
+                return kind, u, step.judged(False)
+            down = min(step.search_speed * dt, step.search_depth - step.searched)
+            foot[2] -= down
+            step.searched += down
+            return "search", u, None
     return kind, u, None
 
 

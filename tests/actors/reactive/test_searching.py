@@ -1,0 +1,111 @@
+"""The searching reflex's policy, called directly: it asks every swing to search down,
+steps a foot that found nothing around, then holds the body; a support lost in stance is
+stepped again (4.2.2, 6.7.3)."""
+
+from __future__ import annotations
+
+from whexar.actors.messages import LegState, NoFoothold, ReflexRequest, SwingEnded
+from whexar.actors.reactive import Command, check_params
+from whexar.actors.reactive.searching import Searching
+from whexar.config import RobotConfig
+
+CFG = RobotConfig()
+
+
+def searching(**params: object) -> Searching:
+    return Searching(check_params(Searching, params), name="reflex-searching", cfg=CFG)
+
+
+def ended(t: float, outcome: str, leg: int = 1, confidence: float = 0.9) -> SwingEnded:
+    return SwingEnded(
+        t=t,
+        source="leg",
+        leg=leg,
+        outcome=outcome,  # type: ignore[arg-type]
+        ground_offset_m=-0.06,
+        confidence=confidence,
+    )
+
+
+def state(t: float, phase: str, contact: bool, leg: int = 2) -> LegState:
+    return LegState(
+        t=t,
+        source="leg",
+        leg=leg,
+        cycle=0,
+        phase=phase,
+        progress=0.5,
+        foot=(0.0, 0.0, 0.0),
+        measured_foot=None,
+        contact=contact,
+        contact_source="fsr",
+        load=(None, None),
+        contact_confidence=0.9,
+    )
+
+
+def requests(out: object) -> list[ReflexRequest]:
+    return [m for m in out if isinstance(m, ReflexRequest)]  # type: ignore[attr-defined]
+
+
+def test_it_asks_every_swing_to_search_once() -> None:
+    s = searching(depth_m=0.05)
+    (req,) = requests(s.tick(0.5))
+    assert req.search_depth_m == 0.05
+    assert requests(s.tick(1.0)) == []
+
+
+def test_nothing_found_steps_around_then_holds_the_body_until_ground_is_found() -> None:
+    s = searching()
+    out: list[Command] = [*s.react(1.0, ended(1.0, "no_contact"))]
+    out += s.react(2.0, ended(2.0, "no_contact"))
+    (forward, back) = requests(out)
+    assert (forward.restep_leg, forward.restep_offset_m) == (1, (0.04, 0.0))
+    assert (back.restep_leg, back.restep_offset_m) == (1, (-0.04, 0.0))
+    assert s.active
+    last = [*s.react(3.0, ended(3.0, "no_contact"))]
+    (halt,) = requests(last)
+    assert halt.halt is True
+    (said,) = [m for m in last if isinstance(m, NoFoothold)]
+    assert (said.leg, said.attempts, said.searched_m) == (1, 2, 0.06)
+    # The leg found ground at last: the body goes on, the reflex is quiet.
+    (go,) = requests(s.react(4.0, ended(4.0, "completed")))
+    assert go.halt is False
+    assert not s.active
+
+
+def test_a_loss_the_contact_estimate_does_not_believe_is_left_alone() -> None:
+    s = searching()
+    assert requests(s.react(1.0, ended(1.0, "no_contact", confidence=0.2))) == []
+    assert not s.active
+
+
+def test_a_support_lost_in_stance_is_stepped_again_once() -> None:
+    s = searching()
+    lost = CFG.contact.touchdown_s
+    assert requests(s.react(1.0, state(1.0, "stance", True))) == []
+    out: list[Command] = []
+    for k in range(60):
+        t = 1.01 + 0.01 * k
+        out += s.react(t, state(t, "stance", False))
+    (req,) = requests(out)
+    assert (req.restep_leg, req.restep_offset_m) == (2, (0.0, 0.0))
+    assert req.t >= 1.01 + lost - 1e-9
+    assert "lost its support" in s.reason
+
+
+def test_a_stance_that_never_had_contact_is_no_loss() -> None:
+    s = searching()
+    out: list[Command] = []
+    for k in range(60):
+        out += s.react(1.0 + 0.01 * k, state(1.0 + 0.01 * k, "stance", False))
+    assert requests(out) == []
+
+
+def test_a_foot_searching_down_makes_it_active() -> None:
+    s = searching()
+    assert requests(s.react(1.0, state(1.0, "search", False))) == []
+    assert s.active
+    assert s.reason == "RM searches down for ground"
+    s.react(1.5, ended(1.5, "completed", leg=2))
+    assert not s.active

@@ -1,0 +1,159 @@
+"""The searching reflex: a foot that finds no ground looks for it (4.2.2, 5.4, 6.7.3).
+
+Theory of operation
+-------------------
+"If there is a change in the amount of pressure the leg applies on the surface,
+the searching reflex is activated and attempts to find a new foothold, first in
+the downward direction and eventually in other directions" (6.7.3). Here:
+
+* **down**: the reflex asks the coordinator that every swing search
+  ``depth_m`` below where it expects the ground
+  (:class:`~whexar.actors.messages.ReflexRequest` ``search_depth_m``): a foot
+  with no contact at the end of its swing goes on down at
+  ``contact.search_speed_m_s`` until it finds ground, and the stance goes on
+  from there (:mod:`whexar.actors.locomotion.steps`). A swing that searched
+  and found ground completes with a negative ground offset; the reflex is
+  active while it searches;
+* **around**: a swing that found nothing within the depth (``no_contact``,
+  believed by the leg's contact estimate) makes the reflex ask for the leg to
+  be stepped again, forward by ``around_m``, then back by it
+  (``restep_leg``), each step searching down again;
+* **a safe stop**: when ``attempts`` steps around found nothing either, it
+  holds the body still (``halt``) and says so (:class:`NoFoothold`), until
+  that leg finds ground;
+* **support lost in stance**: a foot that had contact in its stance and lost
+  it for ``contact.touchdown_s`` (the estimate believing it) is stepped again
+  where it should be, searching (each activation is a "disappeared support"
+  for the terrain estimator, 5.4).
+
+The early-contact stop of 6.7.3 is the leg's own adaptive swing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from pydantic import Field
+
+from whexar.actors.messages import LegState, NoFoothold, SwingEnded
+from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
+from whexar.config import RobotConfig
+from whexar.robot import LEG_NAMES, N_LEGS
+from whexar.runtime.messages import Message
+
+
+class SearchingParams(ReflexParams):
+    """How deep and how far around the searching reflex looks (docs/reflexes.md)."""
+
+    depth_m: float = Field(0.06, gt=0.0, le=0.15)
+    """How far below the expected ground a swing searches, m: the default step height —
+    a leg reaches down as far as it lifts."""
+    around_m: float = Field(0.04, gt=0.0, le=0.1)
+    """How far forward, then back, a foot that found nothing is stepped again, m: half
+    the wheel's diameter, past the edge of a hole the size of a foot."""
+    attempts: int = Field(2, ge=0, le=6)
+    """Steps around before the safe stop: forward, then back."""
+    confidence: float = Field(0.5, gt=0.0, lt=1.0)
+    """A loss counts when the leg's contact estimate believes it at least this much."""
+
+
+class Searching(Reflex):
+    """Searches down, then around, for a foothold (module docstring)."""
+
+    inputs = ("swings", "legs")
+    priority = 25
+    tick_s = 0.5
+    Params = SearchingParams
+    params: SearchingParams
+
+    def __init__(self, params: ReflexParams, *, name: str, cfg: RobotConfig) -> None:
+        super().__init__(params, name=name, cfg=cfg)
+        self.asked = False
+        self.lost_s = cfg.contact.touchdown_s
+        self.tries = [0] * N_LEGS
+        """Per leg: steps around since it last found ground."""
+        self.searching: set[int] = set()
+        """Legs whose foot looks for ground now."""
+        self.halted: set[int] = set()
+        """Legs that found none: the body is held for them."""
+        self.supported = [False] * N_LEGS
+        self.free_since: list[float | None] = [None] * N_LEGS
+
+    def tick(self, t: float) -> Iterable[Command]:
+        if self.asked:
+            return ()
+        self.asked = True
+        return (self.request(t, search_depth_m=self.params.depth_m, reason="search for ground"),)
+
+    def react(self, t: float, msg: Message) -> Iterable[Command]:
+        if isinstance(msg, SwingEnded):
+            return self._swing(t, msg)
+        if isinstance(msg, LegState):
+            return self._leg(t, msg)
+        return ()
+
+    def _swing(self, t: float, msg: SwingEnded) -> list[Command]:
+        leg, p = msg.leg, self.params
+        if msg.outcome != "no_contact":
+            self.tries[leg] = 0
+            self.searching.discard(leg)
+            out: list[Command] = []
+            if leg in self.halted:
+                self.halted.discard(leg)
+                if not self.halted:
+                    out.append(self.request(t, halt=False, reason=f"{LEG_NAMES[leg]} found ground"))
+            self._settle()
+            return out
+        if msg.confidence < p.confidence:
+            return []
+        self.active = True
+        k = self.tries[leg]
+        if k < p.attempts:
+            self.tries[leg] = k + 1
+            self.searching.add(leg)
+            dx = p.around_m if k % 2 == 0 else -p.around_m
+            self.reason = f"{LEG_NAMES[leg]} found no ground: a step {dx * 100:+.0f} cm"
+            return [self.request(t, restep_leg=leg, restep_offset_m=(dx, 0.0), reason=self.reason)]
+        self.halted.add(leg)
+        self.reason = f"{LEG_NAMES[leg]} found no foothold: the body held"
+        depth = p.depth_m
+        return [
+            self.request(t, halt=True, reason=self.reason),
+            NoFoothold(t=t, source=self.name, leg=leg, searched_m=depth, attempts=k),
+        ]
+
+    def _leg(self, t: float, msg: LegState) -> list[Command]:
+        i = msg.leg
+        if msg.phase == "search":  # the leg goes down for the ground it did not find
+            if i not in self.searching:
+                self.searching.add(i)
+                self.active = True
+                self.reason = f"{LEG_NAMES[i]} searches down for ground"
+            return []
+        if msg.phase != "stance":
+            self.supported[i] = False
+            self.free_since[i] = None
+            return []
+        if msg.contact:
+            self.supported[i] = True
+            self.free_since[i] = None
+            return []
+        if not self.supported[i] or msg.contact_confidence < self.params.confidence:
+            return []
+        since = self.free_since[i]
+        if since is None:
+            self.free_since[i] = t
+            return []
+        if t - since < self.lost_s:
+            return []
+        self.supported[i] = False  # once per stance
+        self.free_since[i] = None
+        self.active = True
+        self.searching.add(i)
+        self.reason = f"{LEG_NAMES[i]} lost its support in stance: stepped again"
+        return [self.request(t, restep_leg=i, reason=self.reason)]
+
+    def _settle(self) -> None:
+        if not (self.searching or self.halted):
+            self.active = False
+            self.reason = ""
