@@ -48,9 +48,8 @@ def test_searching_finds_the_floor_of_a_trench_under_the_feet(tmp_path: Path) ->
         for s in found.run.log.messages("swings", of=SwingEnded)
         if s.outcome == "completed" and s.ground_offset_m < -0.001
     ]
-    assert floor  # some landed below where they expected the ground
+    assert floor  # some searched down and stood below where they expected the ground
     s = found.summary()
-    assert s["reflex_activations"] >= 1
     assert s["falls"] == 0
     assert s["progress_along_m"] >= without.summary()["progress_along_m"] - 0.05
 
@@ -63,6 +62,7 @@ def test_a_trench_too_deep_to_search_holds_the_robot_safely(tmp_path: Path) -> N
     assert all(e.done for e in around)
     s = result.summary()
     assert s["falls"] == 0
+    assert s["reflex_activations"] >= 1
     x_end = result.samples[-1].x
     assert x_end < 0.9  # held at the trench's edge, not in it
     assert result.samples[-1].x - next(p.x for p in result.samples if p.t >= held.t) < 0.02

@@ -221,6 +221,10 @@ class ContactSpec(Section):
     """A foot searching for ground below where it expected it goes down at this speed
     (the searching reflex, 4.2.2): the FSR's 0.13 s lag lets it press 7 mm into what it
     finds."""
+    search_stop_m: Positive = 0.015
+    """A searching foot whose distance from its goal's point grew by this much since the
+    search began is held by the ground it looks for: found, before the force sensor says
+    so where the leg carries little load (the front legs uphill on 30°)."""
     touchdown_s: Positive = 0.25
     """A swing that ended with no contact is judged this long after its end: ``completed``
     if contact came meanwhile, else ``no_contact`` (the FSR's contact lags the swing's end

@@ -244,19 +244,45 @@ def test_a_swing_without_ground_ends_with_no_contact_once_touchdown_has_passed()
 def searching_swing(
     leg: LegController, angles: list[float], ground_z: float, until: float
 ) -> list[Message]:
-    """A 0.5 s swing from 1.1 s that searches 6 cm down; the femur feels the ground once
-    the foot is at ``ground_z`` or below."""
+    """A 0.5 s swing from 1.1 s that searches 6 cm down, the servos following their goals;
+    the femur feels the ground once the foot is at ``ground_z`` or below."""
     cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, search_depth_m=0.06)
     out: list[Message] = []
     t = 1.1
     while t < until:
         assert leg.foot is not None
         current = LOADED_A if t > 1.15 and leg.foot[2] <= ground_z + 1e-9 else 0.0
-        out.extend(
-            leg.cycle(t, states(t, angles, femur_a=current), steps=(cmd,) if t == 1.1 else ())
-        )
+        said = leg.cycle(t, states(t, angles, femur_a=current), steps=(cmd,) if t == 1.1 else ())
+        for msg in goals_of(said):
+            for g in msg.goals:
+                if g.joint < 5 and g.position_rad is not None:
+                    angles[g.joint] = g.position_rad
+        out.extend(said)
         t = round(t + DT, 9)
     return out
+
+
+def test_a_searching_foot_the_ground_holds_has_found_it() -> None:
+    # An unloaded leg: no current, whatever the foot meets; the servos stop at the floor.
+    leg, angles = placed()
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, search_depth_m=0.06)
+    out: list[Message] = []
+    t = 1.1
+    while t < 3.0:
+        said = leg.cycle(t, states(t, angles, femur_a=0.0), steps=(cmd,) if t == 1.1 else ())
+        assert leg.foot is not None
+        if leg.foot[2] >= NEUTRAL[2] - 0.02:  # above the floor, 2 cm down: they follow
+            for msg in goals_of(said):
+                for g in msg.goals:
+                    if g.joint < 5 and g.position_rad is not None:
+                        angles[g.joint] = g.position_rad
+        out.extend(said)
+        t = round(t + DT, 9)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "completed"
+    # Held at −2 cm; found once its goal went search_stop_m (15 mm) further down.
+    stop = CFG.contact.search_stop_m
+    assert -0.02 - stop - 0.003 <= ended.ground_offset_m <= -0.02 - stop + 0.003
 
 
 def test_a_swing_that_searches_finds_lower_ground_and_stands_there() -> None:

@@ -17,12 +17,13 @@ def searching(**params: object) -> Searching:
 
 
 def ended(t: float, outcome: str, leg: int = 1, confidence: float = 0.9) -> SwingEnded:
+    """A swing's end: a failed search 6 cm down, or ground where expected."""
     return SwingEnded(
         t=t,
         source="leg",
         leg=leg,
         outcome=outcome,  # type: ignore[arg-type]
-        ground_offset_m=-0.06,
+        ground_offset_m=-0.06 if outcome == "no_contact" else 0.0,
         confidence=confidence,
     )
 
@@ -102,10 +103,18 @@ def test_a_stance_that_never_had_contact_is_no_loss() -> None:
     assert requests(out) == []
 
 
-def test_a_foot_searching_down_makes_it_active() -> None:
+def test_ground_found_a_hole_deep_is_a_moment_of_activity_a_press_is_not() -> None:
     s = searching()
-    assert requests(s.react(1.0, state(1.0, "search", False))) == []
+    s.react(1.0, state(1.0, "search", False))
+    assert not s.active  # the leg searches on its own
+    pressed = SwingEnded(t=1.5, source="leg", leg=2, outcome="completed", ground_offset_m=-0.006)
+    s.react(1.5, pressed)
+    assert not s.active  # 6 mm: a foot pressed into ground it did not feel at once
+    hole = SwingEnded(t=2.0, source="leg", leg=2, outcome="completed", ground_offset_m=-0.03)
+    s.react(2.0, hole)
     assert s.active
-    assert s.reason == "RM searches down for ground"
-    s.react(1.5, ended(1.5, "completed", leg=2))
+    assert s.reason == "RM found ground 3 cm lower"
+    s.tick(2.2)
+    assert s.active
+    s.tick(2.6)
     assert not s.active

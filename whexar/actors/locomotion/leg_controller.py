@@ -35,16 +35,12 @@ In a cycle the leg
    others) and its :class:`LegState`.
 
 Adaptive swing (Diosdado 2014, 3.5–3.6): contact is the leg's contact
-estimate (:class:`~whexar.kinematics.contact.ContactEstimator`): the force
-sensor while its frames arrive and it behaves, otherwise the femur current
-(thesis 6.7.3), with a confidence from both and the step's phase; a sensor
-set aside or taken back is a :class:`ContactDegraded` or
-:class:`ContactRestored` event. A swing whose foot meets the ground from its
-apex on stops there, and the stance continues from that height. Every swing's end is a
-:class:`SwingEnded` — completed, early contact, blocked (something met on
-the way up: the elevator reflex's case), no contact (the searching
-reflex's) — the typed signal a reflex subscribes to. A contact that never
-went away after lift-off is not believed (a stuck sensor).
+estimate (:mod:`whexar.kinematics.contact`: the force sensor, else the femur
+current, with a confidence; a sensor set aside or taken back is a
+:class:`ContactDegraded` or :class:`ContactRestored` event), or, for a foot
+searching down, the ground holding it (its goal error grown by
+``contact.search_stop_m``). Each swing's end is a :class:`SwingEnded`
+(:mod:`.steps`): the typed signal a reflex subscribes to.
 
 The leg flip (6.8.1): when :class:`BodyMotion` says ``upside_down`` changed,
 the trochanter turns by 180° while the other joints hold: the leg, rotated
@@ -148,6 +144,11 @@ class LegController:
             cfg.contact.model(self.loco.contact_current_a), self.contact_source
         )
         self.touchdown_s = cfg.contact.touchdown_s
+        self.search_stop_m = cfg.contact.search_stop_m
+        self.foot_error: float | None = None
+        """The foot's distance from its goals' point at the last state (``foot_error_m``)."""
+        self.search_from: float | None = None
+        """The foot error when the present search began."""
         self.search_speed = cfg.contact.search_speed_m_s
         self.overrides = Overrides(leg, self.loco.reflex_hold_s, self.loco.reflex_blend_s)
         self.wheel_radius = self.geometry.wheel_radius
@@ -253,6 +254,13 @@ class LegController:
                 event(t=self._now, source=self.name, leg=self.leg, sensor=c.sensor, reason=c.reason)
             )
         return est.contact, est.source
+
+    def _stopped_by_ground(self) -> bool:
+        """A searching foot the ground holds: its goal went on down, the foot did not."""
+        err = self.foot_error
+        if err is not None and self.search_from is None:
+            self.search_from = err
+        return err is not None and err - (self.search_from or 0.0) >= self.search_stop_m
 
     def load(self) -> tuple[float | None, float | None]:
         """eq. 5.19, F_i = I_i / (L_i · sin α_{i+1}), for the femur and tibia segments."""
@@ -400,6 +408,8 @@ class LegController:
             if cmd.leg == self.leg:
                 self._begin(cmd)
         contact, source = self._contact(t)
+        if self.phase == "search" and not contact:
+            contact = self._stopped_by_ground()
         self.contact = contact
         phase, progress = "idle", 0.0
         if self.step is not None and self.foot is not None:
@@ -443,6 +453,8 @@ class LegController:
         goals = self._goals(t, angles, airborne)
         if goals is not None:
             out.append(goals)
+        if phase != "search":
+            self.search_from = None
         self.phase = phase
         if self.report:
             out.append(self._state(t, phase, progress, troch, contact, source))
@@ -461,6 +473,7 @@ class LegController:
             sent = self.sent[:_POSITIONING]
             if all(math.isfinite(a) for a in sent):
                 error = math.dist(q, fk_point(sent, self.geometry))
+                self.foot_error = error
             if self.frame.upside_down:
                 q = (q[0], -q[1], q[2])
             measured = self.frame.from_leg(q)

@@ -12,8 +12,10 @@ the downward direction and eventually in other directions" (6.7.3). Here:
   with no contact at the end of its swing goes on down at
   ``contact.search_speed_m_s`` until it finds ground, and the stance goes on
   from there (:mod:`whexar.actors.locomotion.steps`). A swing that searched
-  and found ground completes with a negative ground offset; the reflex is
-  active while it searches;
+  and found ground completes with a negative ground offset; one ``found_m``
+  or more below the expected ground is a hole found, and the reflex is
+  active for a moment (``found_m``: a foot pressed a few millimetres into
+  ground it did not feel at once, as an unloaded leg uphill, is no hole);
 * **around**: a swing that found nothing within the depth (``no_contact``,
   believed by the leg's contact estimate) makes the reflex ask for the leg to
   be stepped again, forward by ``around_m``, then back by it
@@ -41,6 +43,9 @@ from whexar.config import RobotConfig
 from whexar.robot import LEG_NAMES, N_LEGS
 from whexar.runtime.messages import Message
 
+FOUND_S = 0.5
+"""A hole found keeps the reflex active this long: a spell the timeline shows."""
+
 
 class SearchingParams(ReflexParams):
     """How deep and how far around the searching reflex looks (docs/reflexes.md)."""
@@ -55,6 +60,9 @@ class SearchingParams(ReflexParams):
     """Steps around before the safe stop: forward, then back."""
     confidence: float = Field(0.5, gt=0.0, lt=1.0)
     """A loss counts when the leg's contact estimate believes it at least this much."""
+    found_m: float = Field(0.01, gt=0.0, le=0.1)
+    """Ground found this far below the expected is a hole (the flat's own is 0–9 mm: the
+    terrain estimator's 10 mm)."""
 
 
 class Searching(Reflex):
@@ -78,8 +86,12 @@ class Searching(Reflex):
         """Legs that found none: the body is held for them."""
         self.supported = [False] * N_LEGS
         self.free_since: list[float | None] = [None] * N_LEGS
+        self.found_until = -1e9
+        """A hole found keeps the reflex active until then (a spell on the timeline)."""
 
     def tick(self, t: float) -> Iterable[Command]:
+        if self.found_until <= t:
+            self._settle(t)
         if self.asked:
             return ()
         self.asked = True
@@ -102,7 +114,14 @@ class Searching(Reflex):
                 self.halted.discard(leg)
                 if not self.halted:
                     out.append(self.request(t, halt=False, reason=f"{LEG_NAMES[leg]} found ground"))
-            self._settle()
+            if msg.outcome == "completed" and msg.ground_offset_m <= -p.found_m:
+                self.active = True
+                self.found_until = t + FOUND_S
+                self.reason = (
+                    f"{LEG_NAMES[leg]} found ground {-msg.ground_offset_m * 100:.0f} cm lower"
+                )
+            else:
+                self._settle(t)
             return out
         if msg.confidence < p.confidence:
             return []
@@ -124,12 +143,6 @@ class Searching(Reflex):
 
     def _leg(self, t: float, msg: LegState) -> list[Command]:
         i = msg.leg
-        if msg.phase == "search":  # the leg goes down for the ground it did not find
-            if i not in self.searching:
-                self.searching.add(i)
-                self.active = True
-                self.reason = f"{LEG_NAMES[i]} searches down for ground"
-            return []
         if msg.phase != "stance":
             self.supported[i] = False
             self.free_since[i] = None
@@ -153,7 +166,7 @@ class Searching(Reflex):
         self.reason = f"{LEG_NAMES[i]} lost its support in stance: stepped again"
         return [self.request(t, restep_leg=i, reason=self.reason)]
 
-    def _settle(self) -> None:
-        if not (self.searching or self.halted):
+    def _settle(self, t: float) -> None:
+        if not (self.searching or self.halted) and self.found_until <= t:
             self.active = False
             self.reason = ""
