@@ -38,7 +38,11 @@ Value = float | int | bool | str | None
 
 G: Final = 9.81
 """Gravitational acceleration (m/s²) of the cost of transport, as in thesis 6.8.1."""
-METRIC_MODULES: Final = ("whexar.campaign.experiments", "whexar.campaign.failures")
+METRIC_MODULES: Final = (
+    "whexar.campaign.experiments",
+    "whexar.campaign.failures",
+    "whexar.campaign.reflexes",
+)
 """Modules whose metrics :func:`registry` imports: the shipped campaigns' own."""
 
 

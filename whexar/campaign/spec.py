@@ -99,6 +99,7 @@ DEFAULT_METRICS: Final = (
 REPORTS: Final = {
     "experiments": "whexar.campaign.experiments",
     "servo-failures": "whexar.campaign.failures",
+    "reflexes": "whexar.campaign.reflexes",
 }
 """The built-in reports a campaign can ask for (``report = …``), and the module whose
 ``write_report(rows, out_dir)`` writes each."""

@@ -18,7 +18,8 @@ pass, only what the summary, the report and the campaign metrics read:
 * per force-sensor reading (:class:`~whexar.actors.messages.LegLoads`) the six
   legs' contact flags, one byte;
 * each reflex's active spells as (start, end) intervals, from its
-  :class:`~whexar.actors.messages.ReflexActivity`;
+  :class:`~whexar.actors.messages.ReflexActivity`; each swing's end as (time,
+  leg, outcome), from :class:`~whexar.actors.messages.SwingEnded`;
 * every runtime event (they are few), and the latest activity and event for the
   progress line.
 
@@ -44,6 +45,7 @@ from whexar.actors.messages import (
     LocomotionState,
     ReflexActivity,
     ServoStates,
+    SwingEnded,
 )
 from whexar.errors import UsageError
 from whexar.robot import LEG_NAMES, N_LEGS
@@ -156,6 +158,8 @@ class RunSeries:
     _swings: dict[int, list[tuple[float, float]]] = field(default_factory=dict)
     _swing_from: dict[int, float] = field(default_factory=dict)
     _legs_t: float = 0.0
+    swing_ends: list[tuple[float, int, str]] = field(default_factory=list)
+    """(time, leg, outcome) of every swing's end: a few per second."""
     _reflexes: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
     _reflex_from: dict[str, float] = field(default_factory=dict)
     _last_t: float = 0.0
@@ -192,6 +196,8 @@ class RunSeries:
             self.latest_activity = f"{msg.activity} {msg.mode}/{msg.gait}"
         elif isinstance(msg, ReflexActivity):
             self._reflex_activity(msg)
+        elif isinstance(msg, SwingEnded):
+            self.swing_ends.append((msg.t, msg.leg, msg.outcome))
         elif isinstance(msg, Event):
             if channel == EVENTS_CHANNEL:
                 self.events.append(msg)
