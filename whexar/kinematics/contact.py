@@ -72,6 +72,20 @@ _MIN_MOVES: Final = 10
 """A stance shorter than this many current readings says nothing of the current's noise."""
 
 
+MIN_SIN: Final = 0.05
+"""eq. 5.19 divides by sin α: below this (a joint within 3° of straight) it says nothing."""
+
+
+def segment_load(amps: float | None, length: float, next_angle: float | None) -> float | None:
+    """Žák 2023, eq. 5.19: the load indicator F = I / (L · sin α) of a leg segment of
+    ``length`` m whose servo draws ``amps``, α the next joint's angle (A/m); ``None``
+    where a reading is missing or the next joint is nearly straight."""
+    if amps is None or next_angle is None:
+        return None
+    sin = math.sin(next_angle)
+    return None if abs(sin) < MIN_SIN else amps / (length * sin)
+
+
 @dataclass(frozen=True, slots=True)
 class SensorModel:
     """How one contact sensor behaves: the probability it reads contact when the foot
@@ -330,6 +344,7 @@ class ContactEstimator:
 
 
 __all__ = [
+    "MIN_SIN",
     "ContactEstimate",
     "ContactEstimator",
     "ContactModel",
@@ -337,4 +352,5 @@ __all__ = [
     "Preference",
     "SensorModel",
     "Source",
+    "segment_load",
 ]

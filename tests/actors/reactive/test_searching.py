@@ -8,6 +8,7 @@ from whexar.actors.messages import LegState, NoFoothold, ReflexRequest, SwingEnd
 from whexar.actors.reactive import Command, check_params
 from whexar.actors.reactive.searching import Searching
 from whexar.config import RobotConfig
+from whexar.testing.reflexes import locomotion_state
 
 CFG = RobotConfig()
 
@@ -118,3 +119,17 @@ def test_ground_found_a_hole_deep_is_a_moment_of_activity_a_press_is_not() -> No
     assert s.active
     s.tick(2.6)
     assert not s.active
+
+
+def test_in_a_gait_on_four_or_five_feet_the_walk_goes_on_without_the_foothold() -> None:
+    s = searching()
+    s.react(0.5, locomotion_state(0.5, "walking", gait="ripple"))
+    out: list[Command] = []
+    for k in range(3):
+        out += s.react(1.0 + k, ended(1.0 + k, "no_contact"))
+    assert [r.halt for r in requests(out)] == [None, None]  # two steps around, no halt
+    (said,) = [m for m in out if isinstance(m, NoFoothold)]
+    assert said.leg == 1
+    # It tries again at the leg's next swing: around once more.
+    (again,) = requests(list(s.react(4.0, ended(4.0, "no_contact"))))
+    assert again.restep_leg == 1

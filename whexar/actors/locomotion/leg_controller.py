@@ -78,19 +78,21 @@ from whexar.actors.messages import (
 )
 from whexar.config import ContactSource, RobotConfig
 from whexar.errors import KinematicsError
-from whexar.kinematics.contact import ContactEstimator
+from whexar.kinematics.contact import ContactEstimator, segment_load
 from whexar.kinematics.leg import fk_point, ik_point, trochanter_arc
 from whexar.kinematics.trajectory import SwingOutcome, min_jerk, swing_table
 from whexar.robot import N_JOINTS
 from whexar.runtime.messages import Message
 
-MIN_SIN: Final = 0.05
-"""eq. 5.19 divides by sin α: below this (a joint within 3° of straight) it says nothing."""
 FLIPPED_TROCHANTER: Final = -math.pi
 """Trochanter angle of a flipped leg: Goal Position tick 0, inside the register's turn."""
 HALF_TICK_RAD: Final = math.pi / 4096
 """Half a Goal Position tick (0.088°): goals closer than this reach the wire unchanged."""
 _POSITIONING: Final = 5
+READ_FRESH_S: Final = 0.1
+"""A joint read longer ago (a servo lost) leaves the foot's error unknown: ten cycles."""
+_READ_JOINTS: Final = (0, 2, 3, 4)
+"""The joints the foot's error reads (the default plan leaves the trochanter out)."""
 _WHEEL: Final = 6
 
 
@@ -126,6 +128,7 @@ class LegController:
         self.angles: list[float] | None = None
         """The last good positioning angles (coxa…tarsus) from the IK."""
         self.measured: list[float | None] = [None] * N_JOINTS
+        self.read_t = [-math.inf] * N_JOINTS  # when each joint's position was last read
         self.currents: list[float | None] = [None] * N_JOINTS
         self.step: Step | None = None
         self.twist = (0.0, 0.0, 0.0)
@@ -227,6 +230,7 @@ class LegController:
                 position = j.position_rad
                 if position is not None:
                     measured[j.joint] = position
+                    self.read_t[j.joint] = states.t
                 currents[j.joint] = amps = j.current_a
                 if amps is not None and j.joint == 2:
                     self.femur_current, self.current_t = amps, states.t
@@ -263,15 +267,9 @@ class LegController:
         return err is not None and err - (self.search_from or 0.0) >= self.search_stop_m
 
     def load(self) -> tuple[float | None, float | None]:
-        """eq. 5.19, F_i = I_i / (L_i · sin α_{i+1}), for the femur and tibia segments."""
-        return self._segment_load(2, self.femur), self._segment_load(3, self.tibia)
-
-    def _segment_load(self, joint: int, length: float) -> float | None:
-        amps, nxt = self.currents[joint], self.measured[joint + 1]
-        if amps is None or nxt is None:
-            return None
-        sin = math.sin(nxt)
-        return None if abs(sin) < MIN_SIN else amps / (length * sin)
+        """eq. 5.19 for the femur and tibia segments (:func:`segment_load`)."""
+        i, q = self.currents, self.measured
+        return segment_load(i[2], self.femur, q[3]), segment_load(i[3], self.tibia, q[4])
 
     # ----------------------------------------------------------------- the foot
 
@@ -471,7 +469,8 @@ class LegController:
         if coxa is not None and femur is not None and tibia is not None and tarsus is not None:
             q = fk_point((coxa, trochanter, femur, tibia, tarsus), self.geometry)
             sent = self.sent[:_POSITIONING]
-            if all(math.isfinite(a) for a in sent):
+            fresh = all(t - self.read_t[j] <= READ_FRESH_S for j in _READ_JOINTS)
+            if fresh and all(math.isfinite(a) for a in sent):
                 error = math.dist(q, fk_point(sent, self.geometry))
                 self.foot_error = error
             if self.frame.upside_down:

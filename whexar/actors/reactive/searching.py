@@ -21,8 +21,12 @@ the downward direction and eventually in other directions" (6.7.3). Here:
   be stepped again, forward by ``around_m``, then back by it
   (``restep_leg``), each step searching down again;
 * **a safe stop**: when ``attempts`` steps around found nothing either, it
-  holds the body still (``halt``) and says so (:class:`NoFoothold`), until
-  that leg finds ground;
+  says so (:class:`NoFoothold`) and, in a gait that stands on three legs (the
+  tripod's, ``halt_gaits``), holds the body still (``halt``) until that leg
+  finds ground: "in the tripod gait ... loss of support of any leg caused the
+  robot to fall. For more stable gaits, the robot compensated the loss of
+  support of one leg" (6.7.3) — there the walk goes on, the leg trying again
+  at its next swing;
 * **support lost in stance**: a foot that had contact in its stance and lost
   it for ``contact.touchdown_s`` (the estimate believing it) is stepped again
   where it should be, searching (each activation is a "disappeared support"
@@ -37,7 +41,7 @@ from collections.abc import Iterable
 
 from pydantic import Field
 
-from whexar.actors.messages import LegState, NoFoothold, SwingEnded
+from whexar.actors.messages import LegState, LocomotionState, NoFoothold, SwingEnded
 from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
 from whexar.config import RobotConfig
 from whexar.robot import LEG_NAMES, N_LEGS
@@ -58,6 +62,8 @@ class SearchingParams(ReflexParams):
     the wheel's diameter, past the edge of a hole the size of a foot."""
     attempts: int = Field(2, ge=0, le=6)
     """Steps around before the safe stop: forward, then back."""
+    halt_gaits: tuple[str, ...] = ("tripod",)
+    """The gaits in which a foothold not found holds the body (6.7.3: the tripod fell)."""
     confidence: float = Field(0.5, gt=0.0, lt=1.0)
     """A loss counts when the leg's contact estimate believes it at least this much."""
     found_m: float = Field(0.01, gt=0.0, le=0.1)
@@ -68,7 +74,7 @@ class SearchingParams(ReflexParams):
 class Searching(Reflex):
     """Searches down, then around, for a foothold (module docstring)."""
 
-    inputs = ("swings", "legs")
+    inputs = ("swings", "legs", "locomotion")
     priority = 25
     tick_s = 0.5
     Params = SearchingParams
@@ -86,6 +92,8 @@ class Searching(Reflex):
         """Legs that found none: the body is held for them."""
         self.supported = [False] * N_LEGS
         self.free_since: list[float | None] = [None] * N_LEGS
+        self.gait = "tripod"
+        """The gait the coordinator walks (its state)."""
         self.found_until = -1e9
         """A hole found keeps the reflex active until then (a spell on the timeline)."""
 
@@ -102,6 +110,8 @@ class Searching(Reflex):
             return self._swing(t, msg)
         if isinstance(msg, LegState):
             return self._leg(t, msg)
+        if isinstance(msg, LocomotionState):
+            self.gait = msg.gait
         return ()
 
     def _swing(self, t: float, msg: SwingEnded) -> list[Command]:
@@ -133,13 +143,15 @@ class Searching(Reflex):
             dx = p.around_m if k % 2 == 0 else -p.around_m
             self.reason = f"{LEG_NAMES[leg]} found no ground: a step {dx * 100:+.0f} cm"
             return [self.request(t, restep_leg=leg, restep_offset_m=(dx, 0.0), reason=self.reason)]
+        said = NoFoothold(t=t, source=self.name, leg=leg, searched_m=p.depth_m, attempts=k)
+        if self.gait not in p.halt_gaits:
+            self.tries[leg] = 0  # four or five feet hold the body: it tries again next swing
+            self.searching.discard(leg)
+            self.reason = f"{LEG_NAMES[leg]} found no foothold: the walk goes on ({self.gait})"
+            return [said]
         self.halted.add(leg)
         self.reason = f"{LEG_NAMES[leg]} found no foothold: the body held"
-        depth = p.depth_m
-        return [
-            self.request(t, halt=True, reason=self.reason),
-            NoFoothold(t=t, source=self.name, leg=leg, searched_m=depth, attempts=k),
-        ]
+        return [self.request(t, halt=True, reason=self.reason), said]
 
     def _leg(self, t: float, msg: LegState) -> list[Command]:
         i = msg.leg
