@@ -9,11 +9,14 @@ What is measured
 ----------------
 The robot's graph (:func:`~whexar.actors.graph.robot_graph`) on the emulators —
 the in-process servo chain behind the real bus scheduler, the sensor board, the
-IMU — on virtual time, walking the tripod gait at 0.1 m/s from 3 s.
+IMU — on virtual time, walking the tripod gait at 0.1 m/s from 3 s. The legs
+sense no contact (``contact = "none"``): the emulators have no ground, so every
+swing would end with no contact and the searching reflex would step every leg
+again; without it the walk is a nominal one, nothing to react to, and each
+swing ends ``completed``.
 
 * **latency** — the graph also runs :class:`Probe`, a reflex that answers every
-  swing end (:class:`SwingEnded`, the legs' typed signal: on the emulators, which
-  have no ground, every swing ends with no contact) with a femur override of
+  swing end (:class:`SwingEnded`, the legs' typed signal) with a femur override of
   its own, a distinct angle each time. For each, the latency runs from the swing
   end's publication to the first Sync Write of Goal Position on the servo link
   (the bytes the bus scheduler writes, seen through the runtime's link
@@ -23,12 +26,15 @@ IMU — on virtual time, walking the tripod gait at 0.1 m/s from 3 s.
   end's own time — the servo reading it came from, a bus job earlier — is
   given beside it (``latency_from_reading_cycles_p99``).
 * **cpu_ms_per_cycle** — the process CPU time from 5 to 20 s of the same walk
-  with the shipped reflexes (battery, elevator, heading hold: the reactive
-  layer as it is today) less the same without any, divided by the control
-  cycles in the window. Medians of :data:`REPEATS` runs each, taken in turn,
-  so that a burst of load beside the bench moves both. One more run times the
-  reflexes' policies alone (every ``react`` and ``tick``): the part of it that
-  is theirs and not the runtime's (``policies_ms_per_cycle``).
+  with the whole reactive layer (the shipped reflexes — battery, elevator,
+  heading hold, searching, stepping — the terrain estimator and the gait
+  selector) less the same without any of it, divided by the control cycles in
+  the window. Medians of :data:`REPEATS` runs each, taken in turn, so that a
+  burst of load beside the bench moves both. One more run times the reflexes'
+  policies alone (every ``react`` and ``tick``): the part of it that is theirs
+  and not the runtime's (``policies_ms_per_cycle``). The legs' contact
+  estimate runs inside the legs, with or without the layer: its cost is timed
+  apart, six estimates a cycle (``contact_ms_per_cycle``).
 
 No message log is kept: its garbage-collector passes would be billed to the
 runs.
@@ -49,7 +55,9 @@ from whexar.actors.reactive import parse_entries as reflex_entries
 from whexar.actors.reactive.battery import Battery
 from whexar.actors.reactive.elevator import Elevator
 from whexar.actors.reactive.heading import HeadingHold
-from whexar.actors.reactive.layer import REFLEX_ACTOR
+from whexar.actors.reactive.layer import LEG_ACTOR, REFLEX_ACTOR
+from whexar.actors.reactive.searching import Searching
+from whexar.actors.reactive.stepping import Stepping
 from whexar.bench import Figure, Progress, Report, percentile
 from whexar.bus import control_table as ct
 from whexar.bus.protocol import Instruction, PacketDecoder, parse_sync_write_params
@@ -67,8 +75,14 @@ PROBE_BASE_RAD: Final = -0.30
 PROBE_STEP_RAD: Final = 0.02
 PROBE_VALUES: Final = 8
 """The probe's angles: −0.30, −0.28 … −0.16 rad, in turn (within the femur's ±120°)."""
-SHIPPED: Final = ("elevator", "heading-hold")
+SHIPPED: Final = ("elevator", "heading-hold", "searching", "stepping")
 """The shipped reflexes beside the robot graph's own (the battery's)."""
+LAYER_ACTORS: Final = (
+    "whexar.actors.reactive:TerrainEstimatorActor",
+    "whexar.actors.reactive:GaitSelectorActor",
+)
+"""The reactive layer's actors beside the reflexes: the terrain estimator, the selector."""
+LAYER_CHANNELS: Final = ("terrain", "gait-choice", "imu")
 _GOAL_POSITION: Final = ct.model("MX-64").register("goal_position").address
 
 
@@ -118,24 +132,57 @@ def _timed(cls: type[Reflex]) -> type[Reflex]:
 TimedBattery = _timed(Battery)
 TimedElevator = _timed(Elevator)
 TimedHeadingHold = _timed(HeadingHold)
+TimedSearching = _timed(Searching)
+TimedStepping = _timed(Stepping)
 TIMED: Final = {
     "battery": "whexar.bench.reflex:TimedBattery",
     "elevator": "whexar.bench.reflex:TimedElevator",
     "heading-hold": "whexar.bench.reflex:TimedHeadingHold",
+    "searching": "whexar.bench.reflex:TimedSearching",
+    "stepping": "whexar.bench.reflex:TimedStepping",
 }
+
+
+def contact_cost_ms(cycles: int = 20_000) -> float:
+    """CPU of six contact estimates (one control cycle's), ms: a stance and a swing a
+    second, the FSR and the current read every cycle."""
+    from whexar.config import RobotConfig
+    from whexar.kinematics.contact import ContactEstimator
+
+    cfg = RobotConfig()
+    est = ContactEstimator(cfg.contact.model(cfg.locomotion.contact_current_a))
+    start = time.thread_time_ns()
+    for k in range(cycles):
+        t = k * 0.01
+        stance = (k // 50) % 2 == 0
+        est.estimate(
+            t,
+            "stance" if stance else "swing",
+            fsr=stance,
+            fsr_t=t,
+            current_a=-1.2 if stance else 0.2,
+            current_t=t,
+        )
+    return 6 * (time.thread_time_ns() - start) / 1e6 / cycles
 
 
 def bench_graph(*, reflexes: bool, probe: bool, timed: bool = False) -> dict[str, Any]:
     """The robot on the emulators, commands fed; with the shipped reflexes (and the probe),
     or with none."""
     doc = robot_graph(feeds=["commands"])
+    for a in doc["actors"]:  # no ground on the emulators: a walk with nothing to react to
+        if a.get("class") == LEG_ACTOR:
+            a.setdefault("params", {})["contact"] = "none"
     if not reflexes:
-        doc["actors"] = [a for a in doc["actors"] if a.get("class") != REFLEX_ACTOR]
-        for name in (OVERRIDES, REQUESTS, ACTIVITY):
+        gone = (REFLEX_ACTOR, *LAYER_ACTORS)
+        doc["actors"] = [a for a in doc["actors"] if a.get("class") not in gone]
+        for name in (OVERRIDES, REQUESTS, ACTIVITY, *LAYER_CHANNELS):
             doc["channels"].pop(name, None)
         for a in doc["actors"]:
-            for port in ("reflex", "requests"):
+            for port in ("reflex", "requests", "gait_choice"):
                 a.get("inputs", {}).pop(port, None)
+            if a.get("outputs", {}).get("samples") == "imu":
+                del a["outputs"]["samples"]
         return doc
     tables: list[dict[str, Any]] = [
         {"type": TIMED[name] if timed else name, "name": name} for name in SHIPPED
@@ -271,6 +318,7 @@ def run(progress: Progress = None, *, repeats: int = REPEATS, end_s: float = END
     _, cycles, spent_s = one_run(bench_graph(reflexes=True, probe=False, timed=True), end_s=end_s)
     policies_ms = spent_s * 1e3 / max(1, cycles)
     added = statistics.median(with_ms) - statistics.median(without_ms)
+    contact_ms = contact_cost_ms()
     pairs = [a - b for a, b in zip(with_ms, without_ms, strict=True)]
     items = [
         Figure("latency_cycles_p50", "swing end → goal on the wire, p50", p50, "cycles", 1.0),
@@ -302,8 +350,11 @@ def run(progress: Progress = None, *, repeats: int = REPEATS, end_s: float = END
         f"the reflexes' policies alone (every react and tick timed, one more run): "
         f"{policies_ms * 1e3:.1f} µs per cycle; the rest of what they add is receiving and "
         "sending, below the noise of the runs' difference",
-        "the reflexes: battery (the robot graph's), elevator, heading hold (with the IMU's "
-        "samples it reads, published only for it)",
+        "the layer: the reflexes battery (the robot graph's), elevator, heading hold, "
+        "searching, stepping; the terrain estimator and the gait selector (with the IMU's "
+        "samples they read)",
+        f"the legs' contact estimate, in the legs whichever run: {contact_ms * 1e3:.1f} µs "
+        "per cycle (six estimates)",
     ]
     data = {
         "latency_cycles_p50": round(p50, 3),
@@ -311,5 +362,6 @@ def run(progress: Progress = None, *, repeats: int = REPEATS, end_s: float = END
         "cpu_ms_per_cycle": round(added, 4),
         "latency_from_reading_cycles_p99": round(read_p99, 3),
         "policies_ms_per_cycle": round(policies_ms, 4),
+        "contact_ms_per_cycle": round(contact_ms, 4),
     }
     return Report("reflex", items, notes, data=data)
