@@ -1,13 +1,14 @@
 """Helpers for testing a reflex's policy directly: the messages it reads, made short.
 
 A reflex's policy is a plain class (:class:`~whexar.actors.reactive.Reflex`); its test
-makes it and calls ``react`` with the messages of its inputs. The coordinator's state is
-the one with many fields: :func:`locomotion_state` fills them in.
+makes it and calls ``react`` with the messages of its inputs. The coordinator's state and
+a leg's are the ones with many fields: :func:`locomotion_state` and :func:`leg_state`
+fill them in.
 """
 
 from __future__ import annotations
 
-from whexar.actors.messages import LocomotionState, Vec3
+from whexar.actors.messages import LegState, LocomotionState, Vec3
 
 
 def locomotion_state(
@@ -32,4 +33,32 @@ def locomotion_state(
         swing_legs=(),
         margin_m=0.1,
         upside_down=False,
+    )
+
+
+def leg_state(
+    t: float,
+    leg: int,
+    phase: str,
+    *,
+    contact: bool = True,
+    confidence: float = 0.9,
+    foot_error_m: float | None = None,
+) -> LegState:
+    """Leg ``leg``'s state at ``t`` in ``phase``, its contact as its estimate says (the force
+    sensor's, believed ``confidence``), its foot ``foot_error_m`` from its goals' point."""
+    return LegState(
+        t=t,
+        source="leg",
+        leg=leg,
+        cycle=0,
+        phase=phase,
+        progress=0.5,
+        foot=(0.0, 0.0, 0.0),
+        measured_foot=None,
+        contact=contact,
+        contact_source="fsr",
+        load=(None, None),
+        contact_confidence=confidence,
+        foot_error_m=foot_error_m,
     )

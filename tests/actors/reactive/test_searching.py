@@ -8,7 +8,7 @@ from whexar.actors.messages import LegState, NoFoothold, ReflexRequest, SwingEnd
 from whexar.actors.reactive import Command, check_params
 from whexar.actors.reactive.searching import Searching
 from whexar.config import RobotConfig
-from whexar.testing.reflexes import locomotion_state
+from whexar.testing.reflexes import leg_state, locomotion_state
 
 CFG = RobotConfig()
 
@@ -30,20 +30,7 @@ def ended(t: float, outcome: str, leg: int = 1, confidence: float = 0.9) -> Swin
 
 
 def state(t: float, phase: str, contact: bool, leg: int = 2) -> LegState:
-    return LegState(
-        t=t,
-        source="leg",
-        leg=leg,
-        cycle=0,
-        phase=phase,
-        progress=0.5,
-        foot=(0.0, 0.0, 0.0),
-        measured_foot=None,
-        contact=contact,
-        contact_source="fsr",
-        load=(None, None),
-        contact_confidence=0.9,
-    )
+    return leg_state(t, leg, phase, contact=contact)
 
 
 def requests(out: object) -> list[ReflexRequest]:

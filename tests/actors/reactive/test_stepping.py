@@ -9,6 +9,7 @@ from whexar.actors.messages import LegState, ReflexRequest
 from whexar.actors.reactive import Command, check_params
 from whexar.actors.reactive.stepping import Stepping
 from whexar.config import RobotConfig
+from whexar.testing.reflexes import leg_state
 
 
 def stepping(**params: object) -> Stepping:
@@ -16,20 +17,7 @@ def stepping(**params: object) -> Stepping:
 
 
 def state(t: float, error_m: float | None, phase: str = "stance", leg: int = 0) -> LegState:
-    return LegState(
-        t=t,
-        source="leg",
-        leg=leg,
-        cycle=0,
-        phase=phase,
-        progress=0.5,
-        foot=(0.0, 0.0, 0.0),
-        measured_foot=None,
-        contact=True,
-        contact_source="fsr",
-        load=(None, None),
-        foot_error_m=error_m,
-    )
+    return leg_state(t, leg, phase, foot_error_m=error_m)
 
 
 def requests(out: list[Command]) -> list[ReflexRequest]:

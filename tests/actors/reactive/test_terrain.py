@@ -17,6 +17,7 @@ from whexar.actors.messages import (
 )
 from whexar.actors.reactive.terrain import SETTLE_S, TerrainEstimator
 from whexar.config import RobotConfig
+from whexar.testing.reflexes import leg_state
 
 CFG = RobotConfig()
 
@@ -50,20 +51,7 @@ def walking(t: float, cycle_s: float) -> LocomotionState:
 
 
 def leg(t: float, phase: str, contact: bool, confidence: float = 0.9) -> LegState:
-    return LegState(
-        t=t,
-        source="leg-RM",
-        leg=2,
-        cycle=0,
-        phase=phase,
-        progress=0.5,
-        foot=(0.0, 0.0, 0.0),
-        measured_foot=None,
-        contact=contact,
-        contact_source="fsr",
-        load=(None, None),
-        contact_confidence=confidence,
-    )
+    return leg_state(t, 2, phase, contact=contact, confidence=confidence)
 
 
 def test_the_window_is_one_gait_cycle_while_walking_else_the_still_one() -> None:
