@@ -167,6 +167,7 @@ def test_rows_are_judged_by_their_scenarios_criterion() -> None:
         "searching deep": ("searching", 1, 1),
         "stepping snag": ("stepping", 1, 1),
         "heading lost coxa": ("heading-hold", 1, 1),
+        "heading lost coxa alone": ("heading-hold", 0, 0),  # no such row here
     }
     fired = false_triggers(ROWS)
     assert fired["flat"]["searching"] == (1, 3.0)
@@ -196,6 +197,7 @@ def test_the_campaign_file_builds_every_run() -> None:
         "searching deep",
         "stepping snag",
         "heading lost coxa",
+        "heading lost coxa alone",
         "sweep sill",
         "sweep slope23",
     }

@@ -19,7 +19,7 @@ and ``img/reflex-campaign.png``:
   with nothing to react to);
 * **the sweep**: by the force sensors' contact threshold, the elevator's
   success at the sill and its activations per minute on 23° without the
-  trochanter (the thesis's false triggers, 6.7.2).
+  trochanter (the thesis's false triggers, 6.7.2), the elevator running alone.
 
 The targets (issue, docs/reflexes.md): success ≥ 90 % where the thesis reports
 the reflex working, false triggers ≤ 1 per 10 minutes of nominal walking.
@@ -143,6 +143,11 @@ CRITERIA: Final[Mapping[str, tuple[str, str, Callable[[Row], bool]]]] = {
     "heading lost coxa": (
         "heading-hold",
         "RM's coxa silent from 8 s: the heading kept within 5° to 20 s",
+        lambda r: _upright(r) and abs(_n(r, "heading_change_deg")) <= 5.0,
+    ),
+    "heading lost coxa alone": (
+        "heading-hold",
+        "the same, the other reflexes off",
         lambda r: _upright(r) and abs(_n(r, "heading_change_deg")) <= 5.0,
     ),
 }
