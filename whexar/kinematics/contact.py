@@ -86,6 +86,39 @@ def segment_load(amps: float | None, length: float, next_angle: float | None) ->
     return None if abs(sin) < MIN_SIN else amps / (length * sin)
 
 
+class StanceLoss:
+    """A support lost in stance, per leg: a foot that had contact in its present stance
+    and has had none for ``hold_s``, its estimate believing the loss at least
+    ``confidence`` — said once per stance (the searching reflex's case, and the terrain
+    estimator's "disappeared support", 4.2.3)."""
+
+    __slots__ = ("confidence", "free_since", "hold_s", "supported")
+
+    def __init__(self, legs: int, hold_s: float, confidence: float) -> None:
+        self.hold_s = hold_s
+        self.confidence = confidence
+        self.supported = [False] * legs
+        self.free_since: list[float | None] = [None] * legs
+
+    def lost(self, t: float, leg: int, phase: str, contact: bool, confidence: float) -> bool:
+        """One leg's state at ``t``: whether its support is lost now."""
+        if phase != "stance" or contact:
+            self.supported[leg] = contact and phase == "stance"
+            self.free_since[leg] = None
+            return False
+        if not self.supported[leg] or confidence < self.confidence:
+            return False
+        since = self.free_since[leg]
+        if since is None:
+            self.free_since[leg] = t
+            return False
+        if t - since < self.hold_s:
+            return False
+        self.supported[leg] = False  # once per stance
+        self.free_since[leg] = None
+        return True
+
+
 @dataclass(frozen=True, slots=True)
 class SensorModel:
     """How one contact sensor behaves: the probability it reads contact when the foot
@@ -352,5 +385,6 @@ __all__ = [
     "Preference",
     "SensorModel",
     "Source",
+    "StanceLoss",
     "segment_load",
 ]

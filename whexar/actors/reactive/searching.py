@@ -44,6 +44,7 @@ from pydantic import Field
 from whexar.actors.messages import LegState, LocomotionState, NoFoothold, SwingEnded
 from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
 from whexar.config import RobotConfig
+from whexar.kinematics.contact import StanceLoss
 from whexar.robot import LEG_NAMES, N_LEGS
 from whexar.runtime.messages import Message
 
@@ -83,15 +84,13 @@ class Searching(Reflex):
     def __init__(self, params: ReflexParams, *, name: str, cfg: RobotConfig) -> None:
         super().__init__(params, name=name, cfg=cfg)
         self.asked = False
-        self.lost_s = cfg.contact.touchdown_s
         self.tries = [0] * N_LEGS
         """Per leg: steps around since it last found ground."""
         self.searching: set[int] = set()
         """Legs whose foot looks for ground now."""
         self.halted: set[int] = set()
         """Legs that found none: the body is held for them."""
-        self.supported = [False] * N_LEGS
-        self.free_since: list[float | None] = [None] * N_LEGS
+        self.losses = StanceLoss(N_LEGS, cfg.contact.touchdown_s, self.params.confidence)
         self.gait = "tripod"
         """The gait the coordinator walks (its state)."""
         self.found_until = -1e9
@@ -155,24 +154,8 @@ class Searching(Reflex):
 
     def _leg(self, t: float, msg: LegState) -> list[Command]:
         i = msg.leg
-        if msg.phase != "stance":
-            self.supported[i] = False
-            self.free_since[i] = None
+        if not self.losses.lost(t, i, msg.phase, msg.contact, msg.contact_confidence):
             return []
-        if msg.contact:
-            self.supported[i] = True
-            self.free_since[i] = None
-            return []
-        if not self.supported[i] or msg.contact_confidence < self.params.confidence:
-            return []
-        since = self.free_since[i]
-        if since is None:
-            self.free_since[i] = t
-            return []
-        if t - since < self.lost_s:
-            return []
-        self.supported[i] = False  # once per stance
-        self.free_since[i] = None
         self.active = True
         self.searching.add(i)
         self.reason = f"{LEG_NAMES[i]} lost its support in stance: stepped again"

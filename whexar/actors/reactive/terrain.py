@@ -50,6 +50,7 @@ from whexar.actors.messages import (
     TerrainEstimate,
 )
 from whexar.config import RobotConfig
+from whexar.kinematics.contact import StanceLoss
 from whexar.robot import N_LEGS
 
 _KEEP_S = 30.0
@@ -67,7 +68,6 @@ class TerrainEstimator:
     def __init__(self, cfg: RobotConfig) -> None:
         self.spec = cfg.terrain
         self.cycles = cfg.gait_selector.lost_support_window_cycles
-        self.touchdown_s = cfg.contact.touchdown_s
         self.cycle_s = 0.0
         """The gait's cycle, s; 0 while none runs."""
         self.steps: deque[tuple[float, float]] = deque()
@@ -80,10 +80,7 @@ class TerrainEstimator:
         self.last_bump = -math.inf
         self.armed = [True, True]
         """Per rangefinder: the last reading was clear, so the next near one counts."""
-        self.supported = [False] * N_LEGS
-        """Per leg: its present stance has had contact."""
-        self.free_since: list[float | None] = [None] * N_LEGS
-        """Per leg: since when its stance has had no contact."""
+        self.losses = StanceLoss(N_LEGS, cfg.contact.touchdown_s, self.spec.lost_confidence)
 
     def window_s(self) -> float:
         """The window the metrics are taken over, s."""
@@ -108,24 +105,8 @@ class TerrainEstimator:
 
     def leg(self, msg: LegState) -> None:
         """A leg's state: a support lost in the middle of a stance."""
-        i = msg.leg
-        if msg.phase != "stance":
-            self.supported[i] = False
-            self.free_since[i] = None
-            return
-        if msg.contact:
-            self.supported[i] = True
-            self.free_since[i] = None
-            return
-        if not self.supported[i] or msg.contact_confidence < self.spec.lost_confidence:
-            return
-        since = self.free_since[i]
-        if since is None:
-            self.free_since[i] = msg.t
-        elif msg.t - since >= self.touchdown_s:
+        if self.losses.lost(msg.t, msg.leg, msg.phase, msg.contact, msg.contact_confidence):
             self.lost.append(msg.t)
-            self.supported[i] = False  # once per stance
-            self.free_since[i] = None
 
     def tilt(self, msg: BodyTilt) -> None:
         """The body's tilt (eq. 5.6–5.7)."""
