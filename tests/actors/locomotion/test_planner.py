@@ -361,8 +361,11 @@ def test_a_restep_halts_the_walk_steps_the_leg_and_the_walk_goes_on() -> None:
     assert speed[t0 + 7.9] == pytest.approx(0.1)
 
 
-def test_a_restep_is_refused_on_the_wheels() -> None:
+def test_a_restep_is_refused_on_the_wheels_and_for_no_such_leg() -> None:
     planner, legs = standing()
+    said = drive(planner, legs, 2.8, 3.0, {}, {2.8: ask(restep_leg=9)})
+    (bad,) = [m for m in said if isinstance(m, Restepped)]
+    assert (bad.done, bad.reason) == (False, "no leg 9: legs are 0…5")
     said = drive(planner, legs, 3.0, 3.5, {}, {3.0: ask(restep_leg=0)})
     said += drive(planner, legs, 3.5, 7.0, {3.5: cmd(mode="ride")}, {6.5: ask(restep_leg=0)})
     refused = [m for m in said if isinstance(m, Restepped)]

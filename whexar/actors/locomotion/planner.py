@@ -237,11 +237,15 @@ class LocomotionPlanner(Engines):
         w = self.want
         gait = self.wanted_gait()
         restep = self.asks.restep
-        if restep is not None and (self.mode != "walk" or self.upside_down):
-            self.asks.restep = None  # on the wheels, or on its back: no step to take
+        leg = -1 if restep is None or restep.restep_leg is None else restep.restep_leg
+        if restep is not None and (
+            self.mode != "walk" or self.upside_down or not 0 <= leg < N_LEGS
+        ):
+            self.asks.restep = None  # on the wheels, on its back, or no such leg: no step
             why = "riding: the legs stand on their wheels" if self.mode != "walk" else "flipped"
-            n = self.neutral_points[restep.restep_leg or 0]
-            self.say(self._restepped(restep, n, why))
+            if not 0 <= leg < N_LEGS:
+                why = f"no leg {leg}: legs are 0…{N_LEGS - 1}"
+            self.say(self._restepped(restep, (0.0, 0.0, 0.0), why))
             restep = None
         needs_rest = (
             restep is not None
