@@ -45,15 +45,17 @@ firmware:
 # marked slow (pyproject.toml: campaigns, Ray, Valgrind, simavr, long simulations,
 # rendering, subprocesses, ptys and real time). None of them needs the firmware's build
 # or the OpenGL libraries. They run on two workers (pytest-xdist): none waits on real
-# time, so they share the machine safely; the slow ones below run one at a time, as ptys,
-# signals and real-time runs need.
+# time, so they share the machine safely.
 check: lint typecheck
 	$(BIN)/pytest -q -m "not slow" -n 2
 
 # Everything: the inner loop, then the firmware and the slow tests (which use its build
-# and the OpenGL libraries): every test once.
+# and the OpenGL libraries): every test once. The slow tests in two steps: on two workers,
+# then those marked serial one at a time (pyproject.toml: ptys, signals, real-time
+# emulators, tight bounds on the wall clock), where no other test's load can fail them.
 test: check firmware gl
-	$(BIN)/pytest -q -m slow
+	$(BIN)/pytest -q -m "slow and not serial" -n 2
+	$(BIN)/pytest -q -m "slow and serial"
 
 # Headless OpenGL for MuJoCo's renderer (the sim's video and its test): EGL or
 # OSMesa, their Debian packages installed when missing (as root).

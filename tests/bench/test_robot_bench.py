@@ -11,6 +11,7 @@ from whexar.bench import robot
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # bus cycles counted on the wall clock
 @pytest.mark.skipif(os.name != "posix", reason="needs a pseudo-terminal")
 def test_the_bench_runs_the_robot_graph_and_counts_its_cycles() -> None:
     report = robot.run(seconds=1.0)

@@ -347,6 +347,7 @@ def _pty_reads(native: bool, faults: FaultState | None = None, cycles: int = 30)
 
 @needs_native
 @pytest.mark.slow
+@pytest.mark.serial  # answered within the SDK's packet timeout, on real time
 @pytest.mark.parametrize("fault", ["none", "silent", "corrupt"])
 def test_a_real_port_reads_as_the_sdk_reads_it(fault: str) -> None:
     """Over a pty, on real time: the same results on both paths, and every byte through
@@ -404,6 +405,7 @@ def test_without_it_the_bus_says_so_once_and_takes_the_sdks_path(
 
 @needs_native
 @pytest.mark.slow
+@pytest.mark.serial  # answered within the SDK's packet timeout, on real time
 @pytest.mark.parametrize("native", [False, True])
 def test_a_port_that_vanishes_mid_read_is_a_gone_device(native: bool) -> None:
     """The pty's other side closes while the servos answer (a USB adapter pulled out):
@@ -433,6 +435,7 @@ def test_a_port_that_vanishes_mid_read_is_a_gone_device(native: bool) -> None:
 
 @needs_native
 @pytest.mark.slow
+@pytest.mark.serial  # answered within the SDK's packet timeout, on real time
 @pytest.mark.parametrize("native", [False, True])
 def test_bytes_after_the_last_status_stay_unread_on_a_real_port(native: bool) -> None:
     """A reply with bytes behind it (another transaction's, noise): the read takes what the

@@ -342,6 +342,7 @@ def test_the_readme_and_docs_examples_load() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the kill comes 4 s in: the run must be under way by then
 def test_a_worker_killed_mid_run_fails_its_run_and_the_campaign_goes_on(tmp_path: Path) -> None:
     import multiprocessing
     import os

@@ -70,6 +70,7 @@ def _start(started: list[subprocess.Popen[str]], *args: str) -> tuple[subprocess
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the emulator answers each read within the SDK's timeout
 def test_emulate_then_scan_finds_42_servos_with_their_models(
     emulate: list[subprocess.Popen[str]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -177,6 +178,7 @@ policy = "latest"
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the watchdog's 100 ms, on the wall clock
 def test_sigkill_of_a_runtime_driving_the_wheels_and_the_watchdog_stops_them(
     emulate: list[subprocess.Popen[str]], tmp_path: Path
 ) -> None:

@@ -261,6 +261,7 @@ policy = "queue"
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # a signalled process, its stop timed on the wall clock
 def test_sigint_stops_a_tight_loop_publisher_within_the_bound(tmp_path: Path) -> None:
     run = Running(tmp_path, FLOODED)
     # The heart runs its 20 cycles (0.2 s) while the flood floods: it got its
@@ -307,6 +308,7 @@ policy = "latest"
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # a signalled process, its stop timed on the wall clock
 @pytest.mark.parametrize(
     ("cleanup", "left_behind"),
     [
@@ -353,6 +355,7 @@ policy = "latest"
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # a signalled process, its stop timed on the wall clock
 def test_a_second_sigint_runs_the_safe_stop_and_exits_at_once(tmp_path: Path) -> None:
     run = Running(tmp_path, SLOW_CLEANUP)
     run.wait_for("ActorReady      actor='slow'")
@@ -369,6 +372,7 @@ def test_a_second_sigint_runs_the_safe_stop_and_exits_at_once(tmp_path: Path) ->
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # a signalled process, its stop timed on the wall clock
 def test_a_second_sigint_is_heard_while_a_cleanup_blocks_the_loop(tmp_path: Path) -> None:
     run = Running(tmp_path, STUBBORN.replace("{cleanup}", "block"))
     run.wait_for("ActorReady      actor='heart'")

@@ -32,6 +32,7 @@ WATCHDOG_S = 2.0
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the watchdog's feeds timed on the wall clock
 def test_run_says_ready_feeds_the_watchdog_and_says_stopping_on_sigterm() -> None:
     with tempfile.TemporaryDirectory(prefix="sdn") as folder:  # AF_UNIX paths are short
         path = os.path.join(folder, "notify")

@@ -447,6 +447,7 @@ def test_doctor(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
 
 @covers("bus", "scan")
 @pytest.mark.slow
+@pytest.mark.serial  # the emulator answers each read within the SDK's timeout
 def test_bus_scan(capsys: pytest.CaptureFixture[str]) -> None:
     from whexar.bus.emulator.chain import ServoChain
     from whexar.bus.emulator.pty import PtyEmulator

@@ -70,6 +70,7 @@ def _emulate(*args: str) -> tuple[subprocess.Popen[str], dict[str, str]]:
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the emulators on real time, the board's rate measured
 def test_doctor_on_the_emulators_finds_the_robot_ready(tmp_path: Path) -> None:
     proc, ptys = _emulate("--no-realtime", "--board")
     try:

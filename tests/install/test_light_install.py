@@ -74,6 +74,7 @@ def test_the_hook_refuses_every_extra(plain_install: Path) -> None:
 
 
 @pytest.mark.slow  # records on the wall clock, against the emulator over a pty
+@pytest.mark.serial  # a log of real time: the emulator must keep pace
 def test_the_robots_graph_runs_records_and_replays_with_the_plain_install(
     plain_install: Path, tmp_path: Path
 ) -> None:

@@ -21,7 +21,8 @@ from whexar.record.reader import Recording
 from whexar.record.replay import recorded_clock, replay
 from whexar.testing.field import ROOT, record_field_log, write_script
 
-pytestmark = pytest.mark.slow  # each log takes as long as it records, on the wall clock
+# Each log takes as long as it records, on the wall clock, against the emulator over a pty.
+pytestmark = [pytest.mark.slow, pytest.mark.serial]
 
 WALK: list[dict[str, object]] = [{"t": 3.0, "vx_m_s": 0.08}]
 RIDE: list[dict[str, object]] = [{"t": 3.0, "mode": "ride", "vx_m_s": 0.1}]

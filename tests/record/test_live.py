@@ -85,6 +85,7 @@ class Client(threading.Thread):
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # paced to real time
 def test_a_live_run_reaches_a_client_and_nothing_the_client_sends_reaches_the_run() -> None:
     plain = simulate(commands=COMMANDS, duration=2.0, keep_log=True)
     with LiveView(port=0) as live:

@@ -64,6 +64,7 @@ def _kill_after(tmp_path: Path, recorder: str, seconds: float) -> tuple[Path, fl
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the loss is measured on the wall clock
 def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -> None:
     path, killed_at = _kill_after(tmp_path, "whexar.record.writer:Recorder", 1.5)
     recording = Recording(path)
@@ -82,6 +83,7 @@ def test_a_killed_recording_reads_back_to_its_last_half_second(tmp_path: Path) -
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # the loss is measured on the wall clock
 def test_a_runtime_killed_beside_its_recording_process_leaves_a_complete_file(
     tmp_path: Path,
 ) -> None:

@@ -879,6 +879,7 @@ def read_line(proc: subprocess.Popen[str], timeout_s: float = 5.0) -> str:
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # a real process, 5 s of wall time to start and stop
 def test_sigterm_to_a_real_process_stops_it_cleanly(tmp_path: Path) -> None:
     spec = graph(actor("a", period_s=0.01), actor("b", period_s=0.01), actor("c", period_s=0.01))
     proc = start_script(tmp_path, spec)
@@ -893,6 +894,7 @@ def test_sigterm_to_a_real_process_stops_it_cleanly(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # a real process, 5 s of wall time to start and stop
 def test_an_escalation_in_a_real_process_exits_non_zero(tmp_path: Path) -> None:
     spec = graph(
         actor("a", period_s=0.01),

@@ -10,7 +10,7 @@ from whexar.sensors.board_emulator import SensorBoardEmulator
 from whexar.sensors.board_pty import BoardPty
 from whexar.sensors.frame import Frame, FrameDecoder
 
-pytestmark = pytest.mark.slow  # real time, a pty
+pytestmark = [pytest.mark.slow, pytest.mark.serial]  # real time, a pty
 
 
 def test_frames_arrive_at_the_rate_the_host_asks() -> None:

@@ -41,8 +41,9 @@ from whexar.sensors.frame import Frame, FrameDecoder, Rejected
 from whexar.testing import run_actors
 from whexar.testing.sensors import sensor_graph
 
-# Builds the firmware and runs it in simavr: seconds per test.
-pytestmark = pytest.mark.slow
+# Builds the firmware and runs it in simavr: seconds per test. One at a time: the build is
+# not run twice at once, and the harness on a pty runs in real time.
+pytestmark = [pytest.mark.slow, pytest.mark.serial]
 
 ROOT = Path(__file__).resolve().parents[2]
 FIRMWARE = ROOT / "firmware"

@@ -55,6 +55,7 @@ class Board:
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # real time, a pty
 def test_reader_reads_a_serial_port_and_reconnects_after_unplug(tmp_path: Path) -> None:
     board = Board(tmp_path / "ttyBOARD")
     board.plug()
@@ -87,6 +88,7 @@ def test_reader_reads_a_serial_port_and_reconnects_after_unplug(tmp_path: Path) 
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # real time, a pty
 def test_cli_prints_frames_and_events_as_json(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -138,6 +140,7 @@ def test_cli_prints_frames_and_events_as_json(
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # 0.3 s of real time to say the port is missing
 def test_cli_on_a_missing_port_reports_it_and_keeps_looking(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

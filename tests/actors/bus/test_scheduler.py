@@ -339,6 +339,7 @@ def test_bad_bus_configuration_is_refused_before_any_byte(
 
 
 @pytest.mark.slow
+@pytest.mark.serial  # real time, a pty
 def test_scheduler_over_a_pty_in_real_time_runs_and_stops_cleanly() -> None:
     """The thread-owned port path: real SDK, real serial I/O, real time, clean stop."""
     from whexar.bus.emulator.pty import PtyEmulator
