@@ -211,7 +211,6 @@ class _Standing:
     """One sensor's standing: usable, and the run of steps that speak against it."""
 
     usable: bool = True
-    reason: str = ""
     silent_stances: int = 0
     stuck_swings: int = 0
     good_stance: bool = False
@@ -372,7 +371,6 @@ class ContactEstimator:
 
     def _set(self, s: _Standing, name: Sensor, usable: bool, reason: str) -> None:
         s.usable = usable
-        s.reason = "" if usable else reason
         self.changes.append(HealthChange(name, usable, reason))
 
 

@@ -100,6 +100,14 @@ def goals_of(out: list[Message]) -> list[JointGoals]:
     return [m for m in out if isinstance(m, JointGoals)]
 
 
+def follow_goals(angles: list[float], said: list[Message]) -> None:
+    """The servos reach the positioning goals the leg said, by the next cycle."""
+    for msg in goals_of(said):
+        for g in msg.goals:
+            if g.joint < 5 and g.position_rad is not None:
+                angles[g.joint] = g.position_rad
+
+
 def run(
     leg: LegController,
     t0: float,
@@ -129,10 +137,7 @@ def run(
         first = False
         out.extend(said)
         if follow:
-            for msg in goals_of(said):
-                for g in msg.goals:
-                    if g.joint < 5 and g.position_rad is not None:
-                        angles[g.joint] = g.position_rad
+            follow_goals(angles, said)
         t = round(t + DT, 9)
     return out
 
@@ -253,10 +258,7 @@ def searching_swing(
         assert leg.foot is not None
         current = LOADED_A if t > 1.15 and leg.foot[2] <= ground_z + 1e-9 else 0.0
         said = leg.cycle(t, states(t, angles, femur_a=current), steps=(cmd,) if t == 1.1 else ())
-        for msg in goals_of(said):
-            for g in msg.goals:
-                if g.joint < 5 and g.position_rad is not None:
-                    angles[g.joint] = g.position_rad
+        follow_goals(angles, said)
         out.extend(said)
         t = round(t + DT, 9)
     return out
@@ -272,10 +274,7 @@ def test_a_searching_foot_the_ground_holds_has_found_it() -> None:
         said = leg.cycle(t, states(t, angles, femur_a=0.0), steps=(cmd,) if t == 1.1 else ())
         assert leg.foot is not None
         if leg.foot[2] >= NEUTRAL[2] - 0.02:  # above the floor, 2 cm down: they follow
-            for msg in goals_of(said):
-                for g in msg.goals:
-                    if g.joint < 5 and g.position_rad is not None:
-                        angles[g.joint] = g.position_rad
+            follow_goals(angles, said)
         out.extend(said)
         t = round(t + DT, 9)
     (ended,) = swing_ends(out)
