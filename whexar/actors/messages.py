@@ -590,7 +590,9 @@ class BodyMotion(Message):
     (upright frame, 0 = straight ahead; the leg subtracts its coxa angle, 5.1) and
     drives it at ``wheel_speed_m_s`` (ground speed of the contact, signed), both in
     leg order; a leg whose foot is in the air stops its wheel whatever they say.
-    Without ``steer`` the direction joints stand at 0 and the wheels are held.
+    Without ``steer`` the direction joints stand at 0 and the wheels are held, except
+    the legs in ``steer_legs``: they steer and drive their wheels while the others walk
+    (a leg riding its wheel for a lost coxa, :mod:`whexar.actors.locomotion.losses`).
     """
 
     cycle: int
@@ -601,6 +603,7 @@ class BodyMotion(Message):
     steer: bool = False
     wheel_heading_rad: tuple[float, ...] = (0.0,) * 6
     wheel_speed_m_s: tuple[float, ...] = (0.0,) * 6
+    steer_legs: tuple[int, ...] = ()
 
 
 @message
@@ -618,7 +621,9 @@ class StepCommand(Message):
       (:class:`BodyMotion`'s twist) until ``start_t + duration_s``;
     * ``"move"``: move the foot to ``target`` in ``duration_s`` on a minimum-jerk
       path, lifted by ``height_m`` on the way (0: slide, for body height changes);
-    * ``"hold"``: keep the foot where it is.
+    * ``"hold"``: keep the foot where it is;
+    * ``"ride"``: keep the foot where it is under the body, its wheel rolling it over the
+      ground (:class:`BodyMotion`'s ``steer_legs``): a leg whose coxa is lost.
 
     ``search_depth_m`` (a swing): a foot that found no ground where expected searches
     down this far for it (the searching reflex's, 4.2.2), the stance going on from
@@ -753,6 +758,9 @@ class ReflexRequest(Message):
       commands are refused from then on;
     * ``search_depth_m``: swings search down this far for ground they do not find where
       expected (the searching reflex, 4.2.2); 0 withdraws;
+    * ``trochanter_rad``: hold the trochanters at this angle (eq. 4.18's body pitch: the
+      legs parallel to gravity, the trochanter reflex, 6.7.6), in place of the
+      coordinator's own rule; 0 withdraws;
     * ``restep_leg``: step that leg, once, to its neutral point moved by
       ``restep_offset_m`` (x, y in the body frame): the body halts, the leg swings
       there (searching as the swings do), the walk goes on (the stepping and searching
@@ -771,6 +779,7 @@ class ReflexRequest(Message):
     search_depth_m: float | None = None
     restep_leg: int | None = None
     restep_offset_m: tuple[float, float] = (0.0, 0.0)
+    trochanter_rad: float | None = None
 
 
 @message
@@ -872,6 +881,24 @@ class ContactRestored(Event):
     leg: int
     sensor: str
     reason: str
+
+
+@message
+class JointLost(Event):
+    """The bus stopped reading joint ``joint`` of leg ``leg``: the coordinator does
+    ``action`` about it (:mod:`whexar.actors.locomotion.losses`)."""
+
+    leg: int
+    joint: int
+    action: str
+
+
+@message
+class JointBack(Event):
+    """Joint ``joint`` of leg ``leg`` is read again: what its loss changed is undone."""
+
+    leg: int
+    joint: int
 
 
 @message

@@ -415,6 +415,14 @@ class LocomotionSpec(Section):
     current (6.7.3), or none (no adaptive swing)."""
     contact_current_a: Positive = 0.8
     """|femur current| above this means the foot carries load (6.7.3)."""
+    lost_after_s: float = Field(default=0.3, gt=0.02, le=5.0, allow_inf_nan=False)
+    """A joint the bus has not read for this long (and three of its read periods) is
+    lost, and the coordinator walks on without it (:mod:`whexar.actors.locomotion.losses`):
+    longer than the bus's ``degrade_after`` failed cycles, so that a read that fails once
+    changes nothing."""
+    ride_lost_coxa: bool = True
+    """A leg whose coxa is lost rides its wheel while the others walk; false: it is dragged
+    along (only heading hold then keeps the robot's heading)."""
     reflex_hold_s: Positive = 0.3
     """A reflex goal keeps its joint this long after it was sent."""
     reflex_blend_s: Positive = 0.3

@@ -62,7 +62,7 @@ Sensor = Literal["fsr", "current"]
 Source = Literal["fsr", "current", "none"]
 Preference = Literal["auto", "fsr", "current", "none"]
 
-_GROUND: Final = frozenset({"stance", "hold"})
+_GROUND: Final = frozenset({"stance", "hold", "ride"})
 """Phases whose foot should carry load (the health checks judge walking stances only)."""
 _AIR: Final = frozenset({"swing"})
 """Phases whose foot should not (a lifted move or a flip is not judged)."""

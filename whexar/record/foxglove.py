@@ -252,6 +252,7 @@ _LEVELS: Mapping[str, LogLevel] = {
     "ServoFault": LogLevel.WARNING,  # one failed transaction; ServoDegraded follows if it lasts
     "ServoRebooted": LogLevel.WARNING,
     "ServoDegraded": LogLevel.ERROR,
+    "JointLost": LogLevel.ERROR,  # the robot goes on without it where it can
     "SwingDelayed": LogLevel.INFO,  # the gait waiting for a safe margin: normal
     "RecordingStopped": LogLevel.ERROR,  # the rest of the run is not recorded
 }

@@ -39,10 +39,11 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 
 from whexar import _json
-from whexar.actors.messages import GaitSelected, MotionCommand
+from whexar.actors.messages import GaitSelected, JointBack, JointLost, MotionCommand
 from whexar.kinematics.stability import convex_hull
 from whexar.record import plots
 from whexar.record.plots import new_figure, save_figure
+from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.sim.run import progress, travelled
 
 if TYPE_CHECKING:
@@ -359,7 +360,7 @@ def format_figure(key: str, value: object) -> str:
 
 def reactive_timeline(result: SimResult) -> list[tuple[float, str]]:
     """What the reactive layer did, in time order: each gait the selector chose and why,
-    each reflex's active spells."""
+    each reflex's active spells, each servo lost and what the coordinator did about it."""
     out = [
         (e.t, f"gait selector: {e.before} → {e.after} ({e.reason})")
         for e in result.events
@@ -367,7 +368,16 @@ def reactive_timeline(result: SimResult) -> list[tuple[float, str]]:
     ]
     for name, spells in result.series.reflex_intervals().items():
         out += [(t0, f"reflex {name}: active for {t1 - t0:.1f} s") for t0, t1 in spells]
+    for e in result.events:  # what the coordinator did about a lost servo
+        if isinstance(e, JointLost):
+            out.append((e.t, f"{_joint(e.leg, e.joint)} lost: {e.action}"))
+        elif isinstance(e, JointBack):
+            out.append((e.t, f"{_joint(e.leg, e.joint)} back"))
     return sorted(out)
+
+
+def _joint(leg: int, joint: int) -> str:
+    return f"{LEG_NAMES[leg]} {JOINT_NAMES[joint]}"
 
 
 def summary_markdown(

@@ -7,7 +7,7 @@ over (and on its way, linearly, before).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import pytest
 
@@ -18,6 +18,7 @@ from whexar.actors.messages import (
     BodyMotion,
     CommandClamped,
     CommandRefused,
+    JointState,
     LegState,
     LocomotionChanged,
     LocomotionState,
@@ -87,14 +88,16 @@ def drive(
     t1: float,
     commands: Mapping[float, MotionCommand] = {},
     requests: Mapping[float, ReflexRequest] = {},
+    joints: Callable[[float], tuple[JointState, ...]] = lambda t: (),
 ) -> list[Message]:
-    """Cycles every :data:`DT` from ``t0`` to ``t1``; each command and request at its time."""
+    """Cycles every :data:`DT` from ``t0`` to ``t1``; each command and request at its time,
+    the servo states carrying ``joints(t)``."""
     said: list[Message] = []
     n = round((t1 - t0) / DT)
     for k in range(n):
         t = round(t0 + k * DT, 9)
         cycle = round(t / DT)
-        states = ServoStates(t=t, source="bus", cycle=cycle, joints=())
+        states = ServoStates(t=t, source="bus", cycle=cycle, joints=joints(t))
         now = [c for at, c in commands.items() if abs(at - t) < DT / 2]
         asked = [r for at, r in requests.items() if abs(at - t) < DT / 2]
         out = planner.cycle(states, commands=now, legs=legs.states(t, cycle), requests=asked)

@@ -6,7 +6,8 @@ asked for, raised by the largest raise asked (never above
 ``locomotion.max_step_height_mm``), the body held still
 while any reflex halts it, the turn rate corrected by the sum of the heading
 corrections while the body translates, swings that search as deep as the deepest
-search asked, and one leg stepped again at a time (the latest request). Each
+search asked, the trochanters at the largest angle asked, and one leg stepped again at
+a time (the latest request). Each
 reflex's request replaces its own
 earlier one, field by field, and is withdrawn the same way (0, ``False``), so
 two reflexes never undo each other. A plain class: the planner asks it.
@@ -33,6 +34,8 @@ class Asks:
         """(reflex, why) of the first request to sit down, once made."""
         self.depths: dict[str, float] = {}
         """reflex → how deep its swings search."""
+        self.trochanters: dict[str, float] = {}
+        """reflex → the trochanter angle it asks for (rad)."""
         self.restep: ReflexRequest | None = None
         """The request to step a leg again, until the planner takes it."""
 
@@ -64,6 +67,11 @@ class Asks:
                 self.depths[who] = req.search_depth_m
             else:
                 self.depths.pop(who, None)
+        if req.trochanter_rad is not None and math.isfinite(req.trochanter_rad):
+            if req.trochanter_rad != 0.0:
+                self.trochanters[who] = req.trochanter_rad
+            else:
+                self.trochanters.pop(who, None)
         if req.restep_leg is not None:
             self.restep = req
         if req.sit_down and self.sit is None:
@@ -79,6 +87,10 @@ class Asks:
         if self.turns and (vx or vy):
             w += sum(self.turns.values())
         return (vx, vy, w)
+
+    def trochanter(self) -> float | None:
+        """The trochanter angle asked for: the largest in magnitude; None: none asked."""
+        return max(self.trochanters.values(), key=abs, default=None)
 
     def search_depth(self) -> float:
         """How deep a swing searches for ground it does not find: the deepest asked."""

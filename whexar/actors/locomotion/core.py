@@ -114,6 +114,10 @@ class PlannerCore:
         """The robot's centre of gravity in the body frame, m (``body.cog_mm``)."""
         self.frames = [LegFrame(self.geometry, i) for i in range(N_LEGS)]
         """The legs' frames under the body pose: where the arcs are drawn."""
+        self.riders: set[int] = set()
+        """Legs riding their wheel for a lost coxa: they never lift (:mod:`.losses`)."""
+        self.riding: set[int] = set()
+        """The riders told to ride since their last other step."""
         self.pending_moves: list[tuple[int, Vec3, float]] = []
         self.pending_duration = 0.0
         self._workspace: dict[tuple[str, bool], float] = {}
@@ -166,6 +170,8 @@ class PlannerCore:
         self, leg: int, kind: str, duration: float, target: Vec3, height: float = 0.0
     ) -> None:
         """Order ``leg`` to start a step now (:class:`StepCommand`)."""
+        if kind != "ride":
+            self.riding.discard(leg)
         self.say(
             StepCommand(
                 t=self.t,
@@ -231,8 +237,11 @@ class PlannerCore:
         return support_margin(points, cog)
 
     def away(self, leg: int, target: Vec3) -> bool:
-        """Whether ``leg``'s foot is more than :data:`PLACED_M` from ``target``."""
+        """Whether ``leg``'s foot is more than :data:`PLACED_M` from ``target`` (a rider's
+        never is: its foot stays where its lost coxa left it)."""
         foot = self.feet[leg]
+        if leg in self.riders:
+            return False
         if foot is None:
             return True
         return math.dist(foot, target) > PLACED_M

@@ -168,8 +168,9 @@ class Engines(Scripts):
         swing_part = self.gait.swing_fraction
         lifts: list[int] = []
         durations: dict[int, float] = {}
+        riders = self.riders
         for i in range(N_LEGS):
-            if swinging[i]:
+            if swinging[i] or i in riders:
                 continue
             # A leg lifts when its own phase wraps past 0, the start of its swing (gait.py);
             # at a start, a leg the table has in mid-swing lifts for what is left of it.
@@ -251,7 +252,7 @@ class Engines(Scripts):
     def _wheels_hybrid(self, hybrid: bool, swinging: list[bool]) -> None:
         if not hybrid:
             self.steer = False
-            self.speeds = (0.0,) * N_LEGS
+            self._wheels_riders()
             return
         headings, wheel_speeds = self.wheels(self.contacts(), *self.wheel_twist)
         speeds = []
@@ -263,6 +264,21 @@ class Engines(Scripts):
         self.speeds = tuple(speeds)
         if any(abs(v) > STILL for v in self.wheel_twist):
             self.headings = headings
+
+    def _wheels_riders(self) -> None:
+        """Walking: the riders' wheels (a lost coxa, :mod:`.losses`) roll their feet over
+        the ground at the body's twist (eq. 5.17–5.18); every other wheel is held."""
+        if not self.riders:
+            self.speeds = (0.0,) * N_LEGS
+            return
+        headings, speeds = self.wheels(self.contacts(), *self.leg_twist)
+        moving = any(abs(v) > STILL for v in self.leg_twist)
+        self.speeds = tuple(v if i in self.riders else 0.0 for i, v in enumerate(speeds))
+        if moving:  # standing still, a wheel keeps its heading
+            self.headings = tuple(
+                h if i in self.riders else old
+                for i, (h, old) in enumerate(zip(headings, self.headings, strict=True))
+            )
 
     def _ride_tick(self, dt: float) -> None:
         target = (0.0, 0.0, 0.0) if self.winding_down else self._limit_ride(self.asked_twist())

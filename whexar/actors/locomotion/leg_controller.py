@@ -171,7 +171,7 @@ class LegController:
         if motion is None:
             return
         self.twist = motion.twist
-        self.steer = motion.steer and not motion.upside_down
+        self.steer = (motion.steer or self.leg in motion.steer_legs) and not motion.upside_down
         self.heading = motion.wheel_heading_rad[self.leg]
         self.speed = motion.wheel_speed_m_s[self.leg]
         if motion.pose != self.frame.pose:

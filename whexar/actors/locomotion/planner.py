@@ -40,11 +40,15 @@ from whexar.actors.locomotion.activity import QUIET, STEADY, Activity
 from whexar.actors.locomotion.core import SETTLE_S, STILL, Script
 from whexar.actors.locomotion.engines import Engines, ramp
 from whexar.actors.locomotion.intent import refused, take_command
+from whexar.actors.locomotion.losses import LostJoints
 from whexar.actors.locomotion.settle import SETTLE_PERIOD_S, settled
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,
+    CommandRefused,
     GaitChoice,
+    JointBack,
+    JointLost,
     LegState,
     LocomotionState,
     MotionCommand,
@@ -53,7 +57,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import RobotConfig
 from whexar.kinematics.gait import AUTO_GAIT, GAITS
-from whexar.robot import N_LEGS
+from whexar.robot import JOINT_NAMES, LEG_NAMES, N_LEGS
 from whexar.runtime.messages import Message
 
 CONTACT_GRID_M: Final = 0.005
@@ -90,6 +94,11 @@ class LocomotionPlanner(Engines):
         self.margin_m = math.inf
         self.gait_choice: str = self.loco.gait
         """The gait selector's latest choice: the gait while the operator asks for auto."""
+        self.losses = LostJoints(self.loco.lost_after_s)
+        self.no_wheel: set[int] = set()
+        """Legs whose wheel direction or drive is lost: the robot walks (:mod:`.losses`)."""
+        self.trochanter_held: float | None = None
+        """The angle the trochanters hold since one was lost (:mod:`.losses`)."""
 
     # ----------------------------------------------------------------- the cycle
 
@@ -116,6 +125,11 @@ class LocomotionPlanner(Engines):
         self.last_states_t = t
         self.cycle_no = states.cycle
         self._take_states(states)
+        lost, back = self.losses.take(states)
+        for leg, joint in lost:
+            self.joint_lost(leg, joint)
+        for leg, joint in back:
+            self.joint_back(leg, joint)
         self._take_legs(legs)
         if tilt_wired:
             self._take_tilt(tilt, dt)
@@ -130,6 +144,8 @@ class LocomotionPlanner(Engines):
                 continue
             self.clamp_said = False
             out.extend(take_command(self.want, cmd, self.cfg, t=self.t, source=self.name))
+        if self.no_wheel and self.want.mode != "walk":
+            self._walk_without_wheels()
         # Scripts first: while one runs, nothing else moves the feet.
         if self.script is None and self.activity not in QUIET:
             self.script = self._next_script()
@@ -150,6 +166,8 @@ class LocomotionPlanner(Engines):
                 self.set_activity(Activity.STANDING)
             if self.activity == Activity.STANDING:
                 self._settle()
+            if self.script is None:
+                self._ride_riders()
         self._publish()
         return out
 
@@ -224,6 +242,72 @@ class LocomotionPlanner(Engines):
                     round(m[1] / g) * g,
                     round(m[2] / g) * g,
                 )
+
+    # ----------------------------------------------------------------- lost joints
+
+    def joint_lost(self, leg: int, joint: int) -> None:
+        """The bus stopped reading ``joint`` of ``leg``: walk on without it where the robot
+        can (:mod:`.losses`), and say what changes (:class:`JointLost`)."""
+        name = JOINT_NAMES[joint]
+        if name == "coxa":
+            if leg in self.no_wheel or not self.loco.ride_lost_coxa:
+                why = "its wheel is lost too" if leg in self.no_wheel else "ride_lost_coxa off"
+                action = f"none ({why}): the leg is dragged"
+            else:
+                self.riders.add(leg)
+                action = "the leg rides its wheel while the others walk"
+        elif name == "trochanter":
+            self.trochanter_held = self.trochanter_rad
+            action = f"the trochanters hold {math.degrees(self.trochanter_rad):.1f}°"
+        elif name in ("direction", "wheel"):
+            self.no_wheel.add(leg)
+            action = "riding refused: the robot walks"
+            if leg in self.riders:
+                self.riders.discard(leg)
+                action += "; the leg, its coxa lost, is dragged"
+            if self.want.mode != "walk":
+                self._walk_without_wheels()
+        elif name == "tarsus":
+            action = "none: the tarsus holds where it stopped"
+        else:
+            action = "none: the bus stops the robot, the leg cannot carry the body"
+        self.say(JointLost(t=self.t, source=self.name, leg=leg, joint=joint, action=action))
+
+    def joint_back(self, leg: int, joint: int) -> None:
+        """``joint`` of ``leg`` is read again: undo what its loss changed."""
+        name = JOINT_NAMES[joint]
+        if name == "coxa":
+            self.riders.discard(leg)
+        elif name == "trochanter":
+            self.trochanter_held = None
+        elif name in ("direction", "wheel") and not any(
+            (leg, j) in self.losses.lost for j in (5, 6)
+        ):
+            self.no_wheel.discard(leg)
+            if (leg, 0) in self.losses.lost and self.loco.ride_lost_coxa:
+                self.riders.add(leg)
+        self.say(JointBack(t=self.t, source=self.name, leg=leg, joint=joint))
+
+    def _walk_without_wheels(self) -> None:
+        legs = ", ".join(LEG_NAMES[i] for i in sorted(self.no_wheel))
+        self.say(
+            CommandRefused(
+                t=self.t,
+                source=self.name,
+                command=f"mode {self.want.mode}",
+                reason=f"the wheel of {legs} is lost: the robot walks",
+            )
+        )
+        self.want.mode = "walk"
+
+    def _ride_riders(self) -> None:
+        """Tell each rider not told yet to ride its wheel, its foot where it is."""
+        for leg in sorted(self.riders - self.riding):
+            foot = self.feet[leg]
+            if foot is None or self.t < self.swing_until[leg]:
+                continue
+            self.send_step(leg, "ride", SETTLE_S, foot)
+            self.riding.add(leg)
 
     # ----------------------------------------------------------------- what next
 
@@ -336,7 +420,8 @@ class LocomotionPlanner(Engines):
             limit_m=self.loco.settle_max_mm / 1000,
         )
         for leg, target in moves.items():
-            self.send_step(leg, "move", SETTLE_PERIOD_S, target)
+            if leg not in self.riders:
+                self.send_step(leg, "move", SETTLE_PERIOD_S, target)
 
     # ----------------------------------------------------------------- saying it
 
@@ -352,6 +437,12 @@ class LocomotionPlanner(Engines):
             # eq. 4.18: the legs turn with the body's pitch, commanded and measured.
             limit = self.max_trochanter
             trochanter = min(max(self.pose_now[4] + self.tilt_pitch, -limit), limit)
+        asked = self.asks.trochanter()
+        if asked is not None and not self.upside_down:  # the trochanter reflex (6.7.6)
+            limit = self.max_trochanter
+            trochanter = min(max(asked, -limit), limit)
+        if self.trochanter_held is not None and not self.upside_down:
+            trochanter = self.trochanter_held
         self.trochanter_rad = trochanter
         # The ground as gravity sees it: the body's measured tilt less its pose on the feet.
         self.ground_tilt = (
@@ -371,6 +462,7 @@ class LocomotionPlanner(Engines):
                 steer=self.steer,
                 wheel_heading_rad=self.headings,
                 wheel_speed_m_s=self.speeds,
+                steer_legs=tuple(sorted(self.riders)) if self.mode == "walk" else (),
             )
         )
         if not self.report:

@@ -83,7 +83,7 @@ def advance(
     """Move ``foot`` (upright frame, in place) along ``step`` to time ``t``; ``dt`` since the
     last cycle, ``twist`` the body's, ``contact`` this cycle's reading from ``source``
     (``"none"``: the leg senses no contact). Returns the phase (swing, move, stance, hold,
-    search), the progress through the step and, when the swing's outcome is known now,
+    ride, search), the progress through the step and, when the swing's outcome is known now,
     that."""
     u = (t - step.start_t) / step.duration
     u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
@@ -114,6 +114,8 @@ def advance(
         if u >= 1.0:
             step.ended = True  # its last pose (joint space included) is sent this cycle
         return "move", u, None
+    if step.kind == "ride":
+        return "ride", u, None  # its wheel carries it over the ground; the foot stays put
     # On the ground: the body carries the foot (stance, hold, a finished swing or move).
     vx, vy, w = twist
     if dt > 0.0 and (vx or vy or w):
