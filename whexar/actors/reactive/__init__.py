@@ -13,8 +13,8 @@ contact estimate is each leg's (:mod:`whexar.kinematics.contact`), in its
 :class:`~whexar.actors.messages.LegState`.
 
 What will live here too, one actor each, each a thin shell around a plain class (its
-policy, tested directly): the rest of the thesis's reflexes (trochanter, tarsus,
-stepping, searching, obstacle) and a lost servo reported.
+policy, tested directly): the obstacle reflex (4.2.2, 6.7.4). A lost servo is the
+coordinator's own (:mod:`whexar.actors.locomotion.losses`).
 
 How a reflex plugs in — no file of the core changes:
 
