@@ -1,11 +1,12 @@
 """The elevator reflex's policy, called directly: a blocked swing raises the step, up to
-its bound; the raise is withdrawn once no swing has been blocked for its hold."""
+its bound; the raise is withdrawn once no swing has been blocked for its hold; a swing
+that met something light and pushed it (the foot went on) raises nothing."""
 
 from __future__ import annotations
 
 import pytest
 
-from whexar.actors.messages import ReflexRequest, SwingEnded
+from whexar.actors.messages import LegState, ReflexRequest, SwingEnded
 from whexar.actors.reactive import check_params
 from whexar.actors.reactive.elevator import Elevator
 from whexar.config import RobotConfig
@@ -24,7 +25,7 @@ def raises(out: object) -> list[float | None]:
 
 
 def test_each_blocked_swing_raises_the_step_up_to_the_bound() -> None:
-    e = elevator()
+    e = elevator(confirm_s=0.0)
     assert raises(e.react(1.0, ended(1.0, "blocked"))) == [pytest.approx(0.03)]
     assert e.active
     assert e.reason == "leg 0 blocked on its way up: the step +3 cm"
@@ -40,7 +41,7 @@ def test_other_swing_ends_raise_nothing(outcome: str) -> None:
 
 
 def test_the_raise_is_withdrawn_after_the_hold_without_a_block() -> None:
-    e = elevator(hold_s=3.0)
+    e = elevator(hold_s=3.0, confirm_s=0.0)
     e.react(1.0, ended(1.0, "blocked"))
     assert raises(e.tick(3.9)) == []
     e.react(2.0, ended(2.0, "blocked"))  # a new block: the hold starts again
@@ -48,3 +49,54 @@ def test_the_raise_is_withdrawn_after_the_hold_without_a_block() -> None:
     assert raises(e.tick(5.0)) == [0.0]
     assert not e.active
     assert raises(e.tick(6.0)) == []
+
+
+def leg(t: float, error_m: float | None, leg: int = 0) -> LegState:
+    return LegState(
+        t=t,
+        source="leg",
+        leg=leg,
+        cycle=0,
+        phase="swing",
+        progress=0.3,
+        foot=(0.2, 0.2, -0.1),
+        measured_foot=None,
+        contact=True,
+        contact_source="fsr",
+        load=(None, None),
+        foot_error_m=error_m,
+    )
+
+
+def follow(e: Elevator, t0: float, errors: list[float | None]) -> list[float | None]:
+    """The leg's states every 10 ms from ``t0``, with these foot errors: what is asked."""
+    out: list[float | None] = []
+    for k, err in enumerate(errors):
+        t = t0 + 0.01 * (k + 1)
+        out += raises(e.react(t, leg(t, err)))
+    return out
+
+
+def test_a_blocked_swing_is_confirmed_by_the_foot_held_back() -> None:
+    e = elevator()  # held_m 34 mm within confirm_s 0.25 s
+    assert raises(e.react(1.0, ended(1.0, "blocked"))) == []  # not yet: is it held?
+    # The foot falls behind its goal: 20 mm, growing past 34 mm at the 9th state.
+    asked = follow(e, 1.0, [0.020 + 0.002 * k for k in range(12)])
+    assert asked == [pytest.approx(0.03)]
+    assert e.active
+
+
+def test_a_light_obstacle_pushed_away_raises_nothing() -> None:
+    e = elevator()
+    e.react(1.0, ended(1.0, "blocked"))
+    # The foot goes on: its error stays a swing's own (at most 27 mm) for confirm_s.
+    assert follow(e, 1.0, [0.018 + 0.0003 * k for k in range(30)]) == []
+    assert not e.active
+    assert e.pushed == 1
+    assert follow(e, 1.3, [0.05]) == []  # a late error is a new swing's affair
+
+
+def test_a_leg_that_cannot_tell_is_taken_as_blocked() -> None:
+    e = elevator()
+    e.react(1.0, ended(1.0, "blocked"))
+    assert follow(e, 1.0, [None] * 30) == [pytest.approx(0.03)]

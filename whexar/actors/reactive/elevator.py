@@ -12,6 +12,14 @@ above what the operator asked (a :class:`ReflexRequest` ``step_raise_m``; the
 coordinator keeps it within ``locomotion.max_step_height_mm``), so the next
 swings go over. Once no swing has been blocked for ``hold_s`` the raise is
 withdrawn: the operator's step again.
+
+**Pushed, not blocked.** The thesis's elevator did not fire on a light obstacle
+the leg simply pushed away (6.7.2). A blocked swing is confirmed by the foot held
+back: within ``confirm_s`` of the contact, the leg's foot error (its
+:class:`~whexar.actors.messages.LegState` ``foot_error_m``, the servos' tracking
+error at the foot) reaches ``held_m``. A foot that goes on along its path pushed
+what it met: the swing is let be. A leg that cannot tell (its joints unread) is
+taken as blocked.
 """
 
 from __future__ import annotations
@@ -20,7 +28,7 @@ from collections.abc import Iterable
 
 from pydantic import Field
 
-from whexar.actors.messages import SwingEnded
+from whexar.actors.messages import LegState, SwingEnded
 from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
 from whexar.config import RobotConfig
 from whexar.runtime.messages import Message
@@ -36,12 +44,19 @@ class ElevatorParams(ReflexParams):
     hold_s: float = Field(4.8, gt=0.0, le=60.0)
     """The raise is kept this long after the last blocked swing, s (three tripod cycles
     of 1.6 s: every leg has stepped over what blocked one)."""
+    held_m: float = Field(0.034, gt=0.0, le=0.2)
+    """A foot error this large within ``confirm_s`` of the contact confirms a blocked
+    swing, m: between the 27 mm of a foot pushing a 0.3 kg sill and the 42 mm of one held
+    by a fixed sill (a swing's own tracking error reaches 21 mm; docs/reflexes.md)."""
+    confirm_s: float = Field(0.25, ge=0.0, le=2.0)
+    """How long after the contact the foot error is watched, s; 0: every blocked swing
+    fires at once (the thesis's elevator)."""
 
 
 class Elevator(Reflex):
     """Raises the step after a blocked swing (module docstring)."""
 
-    inputs = ("swings",)
+    inputs = ("swings", "legs")
     priority = 20
     tick_s = 0.1
     Params = ElevatorParams
@@ -51,16 +66,44 @@ class Elevator(Reflex):
         super().__init__(params, name=name, cfg=cfg)
         self.raised = 0.0
         self.last_blocked = -1e9
+        self.pending: dict[int, tuple[float, bool]] = {}
+        """leg → (when its swing met something, whether its foot error was read since)."""
+        self.pushed = 0
+        """Blocked swings let be: the foot went on (a light obstacle pushed)."""
 
     def react(self, t: float, msg: Message) -> Iterable[Command]:
+        if isinstance(msg, LegState):
+            return self._watch(t, msg) if msg.leg in self.pending else ()
         if not isinstance(msg, SwingEnded) or msg.outcome != "blocked":
             return ()
+        if self.params.confirm_s <= 0.0:
+            return self._blocked(t, msg.leg)
+        self.pending.setdefault(msg.leg, (t, False))
+        return ()
+
+    def _watch(self, t: float, s: LegState) -> Iterable[Command]:
+        since, seen = self.pending[s.leg]
+        err = s.foot_error_m
+        if err is not None and err >= self.params.held_m:
+            del self.pending[s.leg]
+            return self._blocked(t, s.leg)
+        seen = seen or err is not None
+        if t - since < self.params.confirm_s:
+            self.pending[s.leg] = (since, seen)
+            return ()
+        del self.pending[s.leg]
+        if not seen:  # no foot error to tell by: blocked, as the thesis took it
+            return self._blocked(t, s.leg)
+        self.pushed += 1
+        return ()
+
+    def _blocked(self, t: float, leg: int) -> Iterable[Command]:
         p = self.params
         self.last_blocked = t
         before = self.raised
         self.raised = min(self.raised + p.raise_m, p.max_raise_m)
         self.active = True
-        self.reason = f"leg {msg.leg} blocked on its way up: the step {self.raised * 100:+.0f} cm"
+        self.reason = f"leg {leg} blocked on its way up: the step {self.raised * 100:+.0f} cm"
         if self.raised == before:
             return ()
         return (self.request(t, step_raise_m=self.raised, reason=self.reason),)
