@@ -11,7 +11,7 @@ and then not for ``lost_after_s`` — or three of its own read periods, for a jo
 the read plan reads rarely — is *lost*; read again, it is *back*. A joint read once
 only (at start-up) is never judged: its period is unknown.
 
-What the coordinator does about each (:meth:`LocomotionPlanner.joint_lost`):
+What the coordinator does about each (:meth:`WalkOnLosses.joint_lost`):
 
 * **coxa**: the leg cannot move its foot along the walk any more. It *rides its
   wheel* while the others walk: it never lifts, holds its foot where it is under
@@ -33,7 +33,11 @@ from __future__ import annotations
 import math
 from typing import Final
 
-from whexar.actors.messages import ServoStates
+from whexar.actors.locomotion.core import SETTLE_S
+from whexar.actors.locomotion.engines import Engines
+from whexar.actors.messages import CommandRefused, JointBack, JointLost, ServoStates
+from whexar.config import RobotConfig
+from whexar.robot import JOINT_NAMES, LEG_NAMES
 
 PERIODS: Final = 3.0
 """A joint unread for this many of its own read periods (and ``lost_after_s``) is lost."""
@@ -82,3 +86,79 @@ class LostJoints:
         ]
         lost.update(gone)
         return sorted(gone), back
+
+
+class WalkOnLosses(Engines):
+    """The coordinator's answer to a lost joint (module docstring), over its state."""
+
+    def __init__(self, cfg: RobotConfig, *, name: str) -> None:
+        super().__init__(cfg, name=name)
+        self.losses = LostJoints(self.loco.lost_after_s)
+        self.no_wheel: set[int] = set()
+        """Legs whose wheel direction or drive is lost: the robot walks."""
+        self.trochanter_held: float | None = None
+        """The angle the trochanters hold since one was lost."""
+
+    def joint_lost(self, leg: int, joint: int) -> None:
+        """The bus stopped reading ``joint`` of ``leg``: walk on without it where the robot
+        can (:mod:`.losses`), and say what changes (:class:`JointLost`)."""
+        name = JOINT_NAMES[joint]
+        if name == "coxa":
+            if leg in self.no_wheel or not self.loco.ride_lost_coxa:
+                why = "its wheel is lost too" if leg in self.no_wheel else "ride_lost_coxa off"
+                action = f"none ({why}): the leg is dragged"
+            else:
+                self.riders.add(leg)
+                action = "the leg rides its wheel while the others walk"
+        elif name == "trochanter":
+            self.trochanter_held = self.trochanter_rad
+            action = f"the trochanters hold {math.degrees(self.trochanter_rad):.1f}°"
+        elif name in ("direction", "wheel"):
+            self.no_wheel.add(leg)
+            action = "riding refused: the robot walks"
+            if leg in self.riders:
+                self.riders.discard(leg)
+                action += "; the leg, its coxa lost, is dragged"
+            if self.want.mode != "walk":
+                self._walk_without_wheels()
+        elif name == "tarsus":
+            action = "none: the tarsus holds where it stopped"
+        else:
+            action = "none: the bus stops the robot, the leg cannot carry the body"
+        self.say(JointLost(t=self.t, source=self.name, leg=leg, joint=joint, action=action))
+
+    def joint_back(self, leg: int, joint: int) -> None:
+        """``joint`` of ``leg`` is read again: undo what its loss changed."""
+        name = JOINT_NAMES[joint]
+        if name == "coxa":
+            self.riders.discard(leg)
+        elif name == "trochanter":
+            self.trochanter_held = None
+        elif name in ("direction", "wheel") and not any(
+            (leg, j) in self.losses.lost for j in (5, 6)
+        ):
+            self.no_wheel.discard(leg)
+            if (leg, 0) in self.losses.lost and self.loco.ride_lost_coxa:
+                self.riders.add(leg)
+        self.say(JointBack(t=self.t, source=self.name, leg=leg, joint=joint))
+
+    def _walk_without_wheels(self) -> None:
+        legs = ", ".join(LEG_NAMES[i] for i in sorted(self.no_wheel))
+        self.say(
+            CommandRefused(
+                t=self.t,
+                source=self.name,
+                command=f"mode {self.want.mode}",
+                reason=f"the wheel of {legs} is lost: the robot walks",
+            )
+        )
+        self.want.mode = "walk"
+
+    def _ride_riders(self) -> None:
+        """Tell each rider not told yet to ride its wheel, its foot where it is."""
+        for leg in sorted(self.riders - self.riding):
+            foot = self.feet[leg]
+            if foot is None or self.t < self.swing_until[leg]:
+                continue
+            self.send_step(leg, "ride", SETTLE_S, foot)
+            self.riding.add(leg)

@@ -38,17 +38,14 @@ from typing import Final
 
 from whexar.actors.locomotion.activity import QUIET, STEADY, Activity
 from whexar.actors.locomotion.core import SETTLE_S, STILL, Script
-from whexar.actors.locomotion.engines import Engines, ramp
+from whexar.actors.locomotion.engines import ramp
 from whexar.actors.locomotion.intent import refused, take_command
-from whexar.actors.locomotion.losses import LostJoints
+from whexar.actors.locomotion.losses import WalkOnLosses
 from whexar.actors.locomotion.settle import SETTLE_PERIOD_S, settled
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,
-    CommandRefused,
     GaitChoice,
-    JointBack,
-    JointLost,
     LegState,
     LocomotionState,
     MotionCommand,
@@ -57,7 +54,7 @@ from whexar.actors.messages import (
 )
 from whexar.config import RobotConfig
 from whexar.kinematics.gait import AUTO_GAIT, GAITS
-from whexar.robot import JOINT_NAMES, LEG_NAMES, N_LEGS
+from whexar.robot import N_LEGS
 from whexar.runtime.messages import Message
 
 CONTACT_GRID_M: Final = 0.005
@@ -70,7 +67,7 @@ _POSE_RATES: Final = (0.1, 0.1, 0.1, math.radians(20), math.radians(20), math.ra
 """Body pose change per transition (m, rad): x, y, z, roll, pitch, yaw."""
 
 
-class LocomotionPlanner(Engines):
+class LocomotionPlanner(WalkOnLosses):
     """The coordinator's policy: gaits, riding, stances, transitions (module docstring).
 
     ``name`` is the ``source`` of what it says; ``report`` makes it say its
@@ -94,11 +91,6 @@ class LocomotionPlanner(Engines):
         self.margin_m = math.inf
         self.gait_choice: str = self.loco.gait
         """The gait selector's latest choice: the gait while the operator asks for auto."""
-        self.losses = LostJoints(self.loco.lost_after_s)
-        self.no_wheel: set[int] = set()
-        """Legs whose wheel direction or drive is lost: the robot walks (:mod:`.losses`)."""
-        self.trochanter_held: float | None = None
-        """The angle the trochanters hold since one was lost (:mod:`.losses`)."""
 
     # ----------------------------------------------------------------- the cycle
 
@@ -242,72 +234,6 @@ class LocomotionPlanner(Engines):
                     round(m[1] / g) * g,
                     round(m[2] / g) * g,
                 )
-
-    # ----------------------------------------------------------------- lost joints
-
-    def joint_lost(self, leg: int, joint: int) -> None:
-        """The bus stopped reading ``joint`` of ``leg``: walk on without it where the robot
-        can (:mod:`.losses`), and say what changes (:class:`JointLost`)."""
-        name = JOINT_NAMES[joint]
-        if name == "coxa":
-            if leg in self.no_wheel or not self.loco.ride_lost_coxa:
-                why = "its wheel is lost too" if leg in self.no_wheel else "ride_lost_coxa off"
-                action = f"none ({why}): the leg is dragged"
-            else:
-                self.riders.add(leg)
-                action = "the leg rides its wheel while the others walk"
-        elif name == "trochanter":
-            self.trochanter_held = self.trochanter_rad
-            action = f"the trochanters hold {math.degrees(self.trochanter_rad):.1f}°"
-        elif name in ("direction", "wheel"):
-            self.no_wheel.add(leg)
-            action = "riding refused: the robot walks"
-            if leg in self.riders:
-                self.riders.discard(leg)
-                action += "; the leg, its coxa lost, is dragged"
-            if self.want.mode != "walk":
-                self._walk_without_wheels()
-        elif name == "tarsus":
-            action = "none: the tarsus holds where it stopped"
-        else:
-            action = "none: the bus stops the robot, the leg cannot carry the body"
-        self.say(JointLost(t=self.t, source=self.name, leg=leg, joint=joint, action=action))
-
-    def joint_back(self, leg: int, joint: int) -> None:
-        """``joint`` of ``leg`` is read again: undo what its loss changed."""
-        name = JOINT_NAMES[joint]
-        if name == "coxa":
-            self.riders.discard(leg)
-        elif name == "trochanter":
-            self.trochanter_held = None
-        elif name in ("direction", "wheel") and not any(
-            (leg, j) in self.losses.lost for j in (5, 6)
-        ):
-            self.no_wheel.discard(leg)
-            if (leg, 0) in self.losses.lost and self.loco.ride_lost_coxa:
-                self.riders.add(leg)
-        self.say(JointBack(t=self.t, source=self.name, leg=leg, joint=joint))
-
-    def _walk_without_wheels(self) -> None:
-        legs = ", ".join(LEG_NAMES[i] for i in sorted(self.no_wheel))
-        self.say(
-            CommandRefused(
-                t=self.t,
-                source=self.name,
-                command=f"mode {self.want.mode}",
-                reason=f"the wheel of {legs} is lost: the robot walks",
-            )
-        )
-        self.want.mode = "walk"
-
-    def _ride_riders(self) -> None:
-        """Tell each rider not told yet to ride its wheel, its foot where it is."""
-        for leg in sorted(self.riders - self.riding):
-            foot = self.feet[leg]
-            if foot is None or self.t < self.swing_until[leg]:
-                continue
-            self.send_step(leg, "ride", SETTLE_S, foot)
-            self.riding.add(leg)
 
     # ----------------------------------------------------------------- what next
 
