@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import pytest
 
 from whexar.actors.messages import (
+    HardwareWarning,
     JointState,
     LocomotionState,
     ServoDegraded,
     ServoStates,
     StepCommand,
+    SupplyLow,
+    SupplyRestored,
 )
 from whexar.record.diff import DEFAULT_TOLERANCES, Tolerances, diff_streams
 from whexar.runtime.messages import ActorStarting, Message
@@ -103,6 +107,70 @@ def test_events_matched_in_order_may_come_a_little_late_not_much() -> None:
     report = diff_streams(run(1.0), run(2.0))
     assert not report.agrees
     assert report.events[0].late == 1
+
+
+def warning(t: float, servo: int, *, active: bool = True, bits: int = 1) -> tuple[str, Message]:
+    described = "input voltage" if bits == 1 else "overheating"
+    return (
+        "events",
+        HardwareWarning(
+            t=t, source="bus", servo_id=servo, bits=bits, description=described, active=active
+        ),
+    )
+
+
+def brownout(
+    *, first: int = 1, late: int = 23, late_t: float = 4.707, bits: int = 1
+) -> list[tuple[str, Message]]:
+    """The events of a brownout as one run read it: servo ``first`` read low first (it names
+    the SupplyLow), servos 1 and 3 in the cycle, servo ``late`` only at its turn of the
+    health reads, at ``late_t`` (with ``bits``); all back at 5.3 s to 5.9 s."""
+    other = 3 if first == 1 else 1
+    out = [
+        ("events", SupplyLow(t=4.316, source="bus", servo_ids=(first,))),
+        warning(4.316, first),
+        warning(4.317, other),
+        warning(late_t, late, bits=bits),
+        warning(5.312, 1, active=False),
+        warning(5.313, 3, active=False),
+        warning(5.9, late, active=False, bits=bits),
+        ("events", SupplyRestored(t=5.9, source="bus")),
+    ]
+    return sorted(out, key=lambda e: e[1].t)
+
+
+def test_a_brownout_read_in_another_order_and_a_round_later_agrees() -> None:
+    # The replay read servo 3 first, and servo 23's read fell just before the robot's: it
+    # found the sag at servo 23's next turn of the health reads, 0.57 s later.
+    replayed = brownout(first=3, late_t=5.277)
+    report = diff_streams(brownout(), replayed)
+    assert report.agrees, report.table()
+    (row,) = [e for e in report.events if e.kind == "HardwareWarning servo 23"]
+    assert row.largest_dt == pytest.approx(0.57)
+    # A servo degraded is no health read's finding: 0.57 s late is late.
+    degraded = ServoDegraded(t=4.707, source="bus", servo_id=23, reason="timeout")
+    late = replace(degraded, t=5.277)
+    assert not diff_streams([("events", degraded)], [("events", late)]).agrees
+
+
+@pytest.mark.parametrize(
+    ("replayed", "row"),
+    [
+        ([e for e in brownout() if not isinstance(e[1], SupplyLow)], "SupplyLow"),
+        (brownout(bits=4), "HardwareWarning.bits"),
+        (brownout(late=24), "HardwareWarning servo 24"),
+        (brownout(late_t=4.707 + DEFAULT_TOLERANCES.health_s + 0.1), "HardwareWarning servo 23"),
+    ],
+    ids=["no supply low", "another fault", "another servo", "later than health_s"],
+)
+def test_a_brownout_replayed_otherwise_does_not_agree(
+    replayed: list[tuple[str, Message]], row: str
+) -> None:
+    report = diff_streams(brownout(), replayed)
+    assert not report.agrees
+    wrong = [e.kind for e in report.events if not e.agrees]
+    wrong += [f"{r.message}.{r.field}" for r in report.fields if not r.agrees]
+    assert row in wrong, report.table()
 
 
 def test_the_runtimes_own_lifecycle_is_not_compared() -> None:

@@ -19,6 +19,16 @@ message sequences:
 * **Discrete messages** — events, step commands, swing ends — are matched by kind
   and order (the i-th ``ServoDegraded`` of the one with the i-th of the other),
   their times within ``event_s``, their fields as states.
+* **Health events** — what a servo's Hardware Error Status says that does not latch
+  (``HardwareWarning``), and the supply it tells of (``SupplyLow``,
+  ``SupplyRestored``) — are found when a read reaches the servo, and a servo outside
+  the cycle is read only at its turn of the round-robin health reads (every 0.6 s in
+  the ``default`` plan). On a real clock, a replay whose read of a servo falls a
+  cycle or a stall before the robot's — just before the change the robot's read
+  found — finds the change only at that servo's next turn. So they are matched per
+  servo and order (the order across servos is only the order they were read in),
+  their times within ``health_s``; which servos a ``SupplyLow`` names (those read
+  first) is not compared: each one's warning is.
 
 The result (:class:`DiffReport`) is a table, not a first difference: per channel
 and field, how many samples were compared, the largest and the mean difference,
@@ -100,6 +110,11 @@ a StepCommand of a swing): matched in order within their kind, so that one event
 either run does not put every later one out of step."""
 _STATISTICS: Final = frozenset({"BusStats", "SensorStats"})
 """Counters of the process (cycles, bytes, retries per second): not the robot's signals."""
+_HEALTH: Final = frozenset({"HardwareWarning", "SupplyLow", "SupplyRestored"})
+"""Events a servo's health reads find (module docstring): matched per servo, their times
+within ``health_s``."""
+_READ_ORDER: Final = frozenset({"servo_ids"})
+"""Fields of health events that say only which servos happened to be read first."""
 
 
 @dataclass(frozen=True)
@@ -113,6 +128,11 @@ class Tolerances:
     (docs/replay.md has one measured: 49 ms)."""
     event_s: float = 0.25
     """How far apart in time two matched events (or step commands) may be."""
+    health_s: float = 0.85
+    """How far apart in time two matched health events (a servo's warning, the supply low
+    or back: module docstring) may be: a round of the ``default`` plan's health reads,
+    which reach each servo's Hardware Error Status every 0.6 s (a replay whose read falls
+    just before the robot's finds the change at the next turn), and ``event_s`` more."""
     angle_rad: float = 0.02
     angular_velocity_rad_s: float = 0.5
     length_m: float = 0.005
@@ -615,6 +635,9 @@ class TimeDiff:
         leg = getattr(msg, "leg", None)
         if leg is not None and isinstance(leg, int) and 0 <= leg < len(LEG_NAMES):
             what = f"{what} {LEG_NAMES[leg]}"
+        servo = getattr(msg, "servo_id", None)
+        if type(msg).__name__ in _HEALTH and isinstance(servo, int):
+            what = f"{what} servo {servo}"  # per servo: the order across them is the reads'
         key = (channel, what)
         entry = self._events.get(key)
         if entry is None:
@@ -634,14 +657,19 @@ class TimeDiff:
             mine.append(msg)
 
     def _match(self, row: EventRow, channel: str, a: Message, b: Message) -> None:
+        name = type(a).__name__
+        health = name in _HEALTH
         dt = abs(a.t - b.t)
         row.largest_dt = max(row.largest_dt, dt)
-        if dt > self.tol.event_s:
+        if dt > (self.tol.health_s if health else self.tol.event_s):
             row.late += 1
-        name = type(a).__name__
         if type(b) is not type(a):
             return
-        for (about, fname, kind, va), (_, _, _, vb) in zip(samples(a), samples(b), strict=False):
+        sa, sb = samples(a), samples(b)
+        if health:  # which servos happened to be read first: not compared
+            sa = (x for x in sa if x[1].split("[")[0] not in _READ_ORDER)
+            sb = (x for x in sb if x[1].split("[")[0] not in _READ_ORDER)
+        for (about, fname, kind, va), (_, _, _, vb) in zip(sa, sb, strict=False):
             frow = self._row(channel, name, fname, kind)
             self._score(frow, " ".join(about[1:]) or about[0], a.t, _difference(kind, va, vb))
 
