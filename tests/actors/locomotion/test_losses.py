@@ -152,3 +152,20 @@ def test_a_lost_wheel_refuses_riding_and_a_lost_trochanter_holds_its_angle() -> 
     assert planner.mode == "walk"
     assert planner.want.mode == "walk"
     assert planner.trochanter_held == 0.0
+
+
+def test_the_trochanters_hold_until_every_lost_one_is_back() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    first = all_joints_but({(0, TROCHANTER)}, t0, t0 + 2.0)
+    second = all_joints_but({(1, TROCHANTER)}, t0 + 1.0, t0 + 4.0)
+
+    def joints(t: float) -> tuple[JointState, ...]:
+        both = set(second(t))
+        return tuple(j for j in first(t) if j in both)
+
+    drive(planner, legs, t0, t0 + 3.0, joints=joints)
+    assert planner.trochanter_held == 0.0  # the first is back, the second still lost
+    said = drive(planner, legs, t0 + 3.0, t0 + 5.0, joints=joints)
+    assert [(e.leg, e.joint) for e in said if isinstance(e, JointBack)] == [(1, TROCHANTER)]
+    assert planner.trochanter_held is None

@@ -44,6 +44,9 @@ PERIODS: Final = 3.0
 
 Key = tuple[int, int]
 """(leg, joint)."""
+_COXA: Final = JOINT_NAMES.index("coxa")
+_TROCHANTER: Final = JOINT_NAMES.index("trochanter")
+_WHEEL_JOINTS: Final = frozenset({JOINT_NAMES.index("direction"), JOINT_NAMES.index("wheel")})
 
 
 class LostJoints:
@@ -95,33 +98,42 @@ class WalkOnLosses(Engines):
         super().__init__(cfg, name=name)
         self.losses = LostJoints(self.loco.lost_after_s)
         self.no_wheel: set[int] = set()
-        """Legs whose wheel direction or drive is lost: the robot walks."""
+        """Legs whose wheel direction or drive is lost: the robot walks (:meth:`_recount`)."""
         self.trochanter_held: float | None = None
-        """The angle the trochanters hold since one was lost."""
+        """The angle the trochanters hold while one is lost."""
+
+    def _recount(self) -> None:
+        """What the lost joints leave: the legs without a wheel, and the riders — a lost
+        coxa's leg whose wheel is there (``ride_lost_coxa``)."""
+        lost = self.losses.lost
+        self.no_wheel = {leg for leg, j in lost if j in _WHEEL_JOINTS}
+        coxa_lost = {leg for leg, j in lost if j == _COXA}
+        self.riders = coxa_lost - self.no_wheel if self.loco.ride_lost_coxa else set()
+        self.riding &= self.riders
+        if not any(j == _TROCHANTER for _, j in lost):
+            self.trochanter_held = None
 
     def joint_lost(self, leg: int, joint: int) -> None:
         """The bus stopped reading ``joint`` of ``leg``: walk on without it where the robot
         can (:mod:`.losses`), and say what changes (:class:`JointLost`)."""
-        name = JOINT_NAMES[joint]
-        if name == "coxa":
-            if leg in self.no_wheel or not self.loco.ride_lost_coxa:
+        if joint == _TROCHANTER and self.trochanter_held is None:
+            self.trochanter_held = self.trochanter_rad
+        self._recount()
+        if joint == _COXA:
+            if leg in self.riders:
+                action = "the leg rides its wheel while the others walk"
+            else:
                 why = "its wheel is lost too" if leg in self.no_wheel else "ride_lost_coxa off"
                 action = f"none ({why}): the leg is dragged"
-            else:
-                self.riders.add(leg)
-                action = "the leg rides its wheel while the others walk"
-        elif name == "trochanter":
-            self.trochanter_held = self.trochanter_rad
-            action = f"the trochanters hold {math.degrees(self.trochanter_rad):.1f}°"
-        elif name in ("direction", "wheel"):
-            self.no_wheel.add(leg)
+        elif joint == _TROCHANTER:
+            action = f"the trochanters hold {math.degrees(self.trochanter_held or 0.0):.1f}°"
+        elif joint in _WHEEL_JOINTS:
             action = "riding refused: the robot walks"
-            if leg in self.riders:
-                self.riders.discard(leg)
+            if (leg, _COXA) in self.losses.lost:
                 action += "; the leg, its coxa lost, is dragged"
             if self.want.mode != "walk":
                 self._walk_without_wheels()
-        elif name == "tarsus":
+        elif JOINT_NAMES[joint] == "tarsus":
             action = "none: the tarsus holds where it stopped"
         else:
             action = "none: the bus stops the robot, the leg cannot carry the body"
@@ -129,17 +141,7 @@ class WalkOnLosses(Engines):
 
     def joint_back(self, leg: int, joint: int) -> None:
         """``joint`` of ``leg`` is read again: undo what its loss changed."""
-        name = JOINT_NAMES[joint]
-        if name == "coxa":
-            self.riders.discard(leg)
-        elif name == "trochanter":
-            self.trochanter_held = None
-        elif name in ("direction", "wheel") and not any(
-            (leg, j) in self.losses.lost for j in (5, 6)
-        ):
-            self.no_wheel.discard(leg)
-            if (leg, 0) in self.losses.lost and self.loco.ride_lost_coxa:
-                self.riders.add(leg)
+        self._recount()
         self.say(JointBack(t=self.t, source=self.name, leg=leg, joint=joint))
 
     def _walk_without_wheels(self) -> None:
