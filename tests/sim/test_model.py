@@ -222,12 +222,14 @@ def test_joint_ranges_and_dynamics_follow_the_config(model: mujoco.MjModel) -> N
 
 
 def test_ir_sites_ride_on_the_front_legs_looking_forward(model: mujoco.MjModel) -> None:
+    down = math.radians(CFG.ir.pitch_deg)  # the mount, pitched down
+    c, s = math.cos(down), math.sin(down)
     d = _at_origin(model, np.zeros((6, 7)))
     for name, leg, side in (("ir_right", "RF", -1.0), ("ir_left", "LF", 1.0)):
         site = model.site(name)
         assert model.body(site.bodyid[0]).name == f"{leg}_trochanter_link"
         ray = d.site_xmat[site.id].reshape(3, 3)[:, 2]
-        np.testing.assert_allclose(ray, [1.0, 0.0, 0.0], atol=1e-12)
+        np.testing.assert_allclose(ray, [c, 0.0, -s], atol=1e-12)
         assert d.site_xpos[site.id][0] > 0.3
         assert side * d.site_xpos[site.id][1] > 0.1
     # The coxa yaws it; the femur does not move it.
@@ -235,16 +237,16 @@ def test_ir_sites_ride_on_the_front_legs_looking_forward(model: mujoco.MjModel) 
     angles[:, 0], angles[:, 2] = 0.3, 0.8
     d = _at_origin(model, angles)
     ray = d.site_xmat[model.site("ir_right").id].reshape(3, 3)[:, 2]
-    np.testing.assert_allclose(ray, [math.cos(0.3), math.sin(0.3), 0.0], atol=1e-12)
+    np.testing.assert_allclose(ray, [c * math.cos(0.3), c * math.sin(0.3), -s], atol=1e-12)
     # The body pitched nose down by 0.2 rad, the trochanters following it (eq. 4.18):
-    # the rays stay level.
+    # the rays keep their pitch below the horizon.
     d = mujoco.MjData(model)
     d.qpos[3:7] = [math.cos(0.1), 0.0, math.sin(0.1), 0.0]
     d.qpos[_qadr(model)[1::7]] = 0.2
     mujoco.mj_kinematics(model, d)
     for name in ("ir_right", "ir_left"):
         ray = d.site_xmat[model.site(name).id].reshape(3, 3)[:, 2]
-        np.testing.assert_allclose(ray, [1.0, 0.0, 0.0], atol=1e-12)
+        np.testing.assert_allclose(ray, [c, 0.0, -s], atol=1e-12)
 
 
 def test_bad_arguments_are_usage_errors() -> None:
@@ -354,7 +356,8 @@ def test_the_urdf_has_the_same_kinematics() -> None:
 
     from whexar.sim.urdf import build_urdf
 
-    robot = ET.fromstring(build_urdf(CFG))
+    # The rangefinders mounted level, so that the ray's x is cos(coxa)·cos(trochanter).
+    robot = ET.fromstring(build_urdf(RobotConfig.model_validate({"ir": {"pitch_deg": 0.0}})))
     rng = np.random.default_rng(5)
     angles = np.zeros((6, 7))
     angles[:, :5] = rng.uniform(GEOMETRY.lower_limits, GEOMETRY.upper_limits, size=(6, 5))

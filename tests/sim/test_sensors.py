@@ -23,9 +23,9 @@ CFG = RobotConfig()
 
 
 def _resting(
-    terrain: Terrain, *, gravity_pitch_deg: float = 0.0
+    terrain: Terrain, *, gravity_pitch_deg: float = 0.0, cfg: RobotConfig = CFG
 ) -> tuple[SimWorld, FakeLsm9ds1, SensorBoardEmulator]:
-    model = load_model(CFG, terrain=terrain)
+    model = load_model(cfg, terrain=terrain)
     if gravity_pitch_deg:
         # The other way to make a slope: tilt gravity instead of the ground.
         theta = math.radians(gravity_pitch_deg)
@@ -33,7 +33,7 @@ def _resting(
     chain = ServoChain.for_models(CFG.servos(), baudrate=CFG.bus.baudrate)
     chip = FakeLsm9ds1()
     board = SensorBoardEmulator(accelerometer=True)
-    world = SimWorld(model, chain, cfg=CFG, board=board, imu=chip)
+    world = SimWorld(model, chain, cfg=cfg, board=board, imu=chip)
     pos, quat = terrain.ground.start_pose(CFG.locomotion.sit_height_mm / 1000 + 0.002)
     world.set_pose(seated_angles(CFG), base_xyz=pos, base_quat=quat)
     for servo in chain.servos.values():  # every servo holds where it is
@@ -76,18 +76,34 @@ def test_a_20_degree_slope_reads_as_20_degrees_of_pitch(how: str) -> None:
     assert board_roll == pytest.approx(roll, abs=math.radians(1.5))
 
 
-def test_the_rangefinders_see_a_block_ahead_and_nothing_beyond_range() -> None:
-    _, _, board = _resting(flat() + block((0.1, 1.0, 0.6), (1.0, 0.0)))
+LEVEL = RobotConfig.model_validate({"ir": {"pitch_deg": 0.0}})
+"""The rangefinders mounted level: their rays stay above the floor."""
+
+
+def _ranges(board: SensorBoardEmulator) -> list[float]:
     counts = board.inputs_at(0.0)
     ir = CFG.ir
-    seen = [ir_distance(counts[key], ir.k_cm, ir.exponent) for key in ("ir1", "ir2")]  # m
+    return [ir_distance(counts[key], ir.k_cm, ir.exponent) for key in ("ir1", "ir2")]  # m
+
+
+def test_the_rangefinders_see_a_block_ahead_and_nothing_beyond_range() -> None:
+    _, _, board = _resting(flat() + block((0.1, 1.0, 0.6), (1.0, 0.0)), cfg=LEVEL)
+    seen = _ranges(board)
     # The block's face is at x = 0.95 m; the sensors sit on the front legs, ahead of C.
     assert all(0.3 < d < 0.95 for d in seen), seen
     assert seen[0] == pytest.approx(seen[1], abs=0.02)
-    world2, _, board2 = _resting(flat())
-    far = [ir_distance(board2.inputs_at(0.0)[key], ir.k_cm, ir.exponent) for key in ("ir1", "ir2")]
-    assert all(d > ir.max_distance_mm / 1000 for d in far)
+    world2, _, board2 = _resting(flat(), cfg=LEVEL)
+    assert all(d > CFG.ir.max_distance_mm / 1000 for d in _ranges(board2))
     assert isinstance(world2.ir_counts[0], int)
+
+
+def test_pitched_down_the_rangefinders_meet_the_floor_ahead() -> None:
+    world, _, board = _resting(flat())
+    site = world.model.site("ir_right").id
+    height = float(world.data.site_xpos[site][2])
+    # Seated, the sensors are low: each ray meets the floor at height / sin(20°).
+    expected = height / math.sin(math.radians(CFG.ir.pitch_deg))
+    assert _ranges(board) == pytest.approx([expected] * 2, rel=0.1)
 
 
 def test_seated_on_its_wheels_each_force_sensor_reads_a_sixth_of_the_weight() -> None:

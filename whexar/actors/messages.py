@@ -761,6 +761,9 @@ class ReflexRequest(Message):
     * ``trochanter_rad``: hold the trochanters at this angle (eq. 4.18's body pitch: the
       legs parallel to gravity, the trochanter reflex, 6.7.6), in place of the
       coordinator's own rule; 0 withdraws;
+    * ``block_ahead``: no translation forward while it lasts (the operator's forward speed
+      held at 0; turning, sidestepping and backing away go on): the obstacle reflex's stop
+      before what it will not climb (4.2.2: avoided by navigation); ``False`` withdraws;
     * ``restep_leg``: step that leg, once, to its neutral point moved by
       ``restep_offset_m`` (x, y in the body frame): the body halts, the leg swings
       there (searching as the swings do), the walk goes on (the stepping and searching
@@ -780,6 +783,7 @@ class ReflexRequest(Message):
     restep_leg: int | None = None
     restep_offset_m: tuple[float, float] = (0.0, 0.0)
     trochanter_rad: float | None = None
+    block_ahead: bool | None = None
 
 
 @message

@@ -185,6 +185,13 @@ class IRSpec(Section):
     """Nearest calibrated distance (Table 5.4: 10 cm)."""
     max_distance_mm: Positive = 1500.0
     """Detection range: up to 150 cm (5.3.5)."""
+    pitch_deg: float = Field(default=20.0, ge=-10.0, le=45.0, allow_inf_nan=False)
+    """The mount, pitched down from the femur axis, degrees. The thesis gives no angle
+    (5.3.5), but counts obstacles "that can be overcome" from the rangefinders (4.2.3),
+    which a level ray at the coxa joints' height (29 cm) never sees. Pitched 20° down,
+    the rays meet the flat 0.84 m ahead (two tripod steps and a stop), a 5 cm rise
+    0.66 m ahead, a 30° upslope 0.38 m ahead, and profile what lies there (the obstacle
+    reflex, :mod:`whexar.actors.reactive.obstacle`)."""
 
     def problems(self, at: str) -> list[Problem]:
         found: list[Problem] = []

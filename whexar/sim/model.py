@@ -455,12 +455,13 @@ def robot_links(
                 # trochanter at 0. Sitting on that axis, they do not move with the femur;
                 # the coxa yaws them (25° inward in the default stance) and the trochanter
                 # tilts them, which keeps the ray level when the trochanter follows the
-                # body's pitch (eq. 4.18).
+                # body's pitch (eq. 4.18). ``ir.pitch_deg`` tilts the mount down.
+                down = math.radians(cfg.ir.pitch_deg)
                 sites.append(
                     ModelSite(
                         f"ir_{'right' if side > 0 else 'left'}",
                         _vec(nxt[k] + np.array([IR_FORWARD, 0.0, 0.0]) - o),
-                        (1.0, 0.0, 0.0),
+                        (math.cos(down), 0.0, 0.0 - math.sin(down)),
                     )
                 )
             chain.append((name, o, axes[k + 1], geoms, sites))

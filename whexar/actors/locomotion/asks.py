@@ -4,7 +4,8 @@ The operator's command is what the robot wants (:mod:`.intent`); the reflexes'
 requests bend it while they last: a step at least as high as the highest
 asked for, raised by the largest raise asked (never above
 ``locomotion.max_step_height_mm``), the body held still
-while any reflex halts it, the turn rate corrected by the sum of the heading
+while any reflex halts it, no forward translation while any blocks the way ahead, the
+turn rate corrected by the sum of the heading
 corrections while the body translates, swings that search as deep as the deepest
 search asked, the trochanters at the largest angle asked, and one leg stepped again at
 a time (the latest request). Each
@@ -29,6 +30,8 @@ class Asks:
         self.raises: dict[str, float] = {}
         self.halts: dict[str, str] = {}
         """reflex → why it halts the body."""
+        self.blocks: dict[str, str] = {}
+        """reflex → why nothing goes forward."""
         self.turns: dict[str, float] = {}
         self.sit: tuple[str, str] | None = None
         """(reflex, why) of the first request to sit down, once made."""
@@ -57,6 +60,11 @@ class Asks:
                 self.halts[who] = req.reason
             else:
                 self.halts.pop(who, None)
+        if req.block_ahead is not None:
+            if req.block_ahead:
+                self.blocks[who] = req.reason
+            else:
+                self.blocks.pop(who, None)
         if req.yaw_rate_rad_s is not None and math.isfinite(req.yaw_rate_rad_s):
             if req.yaw_rate_rad_s != 0.0:
                 self.turns[who] = req.yaw_rate_rad_s
@@ -84,6 +92,8 @@ class Asks:
         if self.halts:
             return (0.0, 0.0, 0.0)
         vx, vy, w = wanted
+        if self.blocks:
+            vx = min(vx, 0.0)
         if self.turns and (vx or vy):
             w += sum(self.turns.values())
         return (vx, vy, w)
