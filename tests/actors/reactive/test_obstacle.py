@@ -1,0 +1,194 @@
+"""The obstacle reflex's policy, called directly on a ray-cast world: a profile sorted
+into clear ground, a slope or an obstacle; the walk stopped, the obstacle measured by the
+trochanter sweep, then climbed with a higher step or kept off until the way is clear."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import pytest
+
+from whexar.actors.locomotion.asks import Asks
+from whexar.actors.messages import BodyMotion, ObstacleRanges, ReflexRequest
+from whexar.actors.reactive import check_params
+from whexar.actors.reactive.obstacle import (
+    RAY_DOWN_PER_TROCHANTER,
+    ObstacleReflex,
+    profile,
+    ray_point,
+)
+from whexar.config import RobotConfig
+from whexar.testing.reflexes import locomotion_state
+
+CFG = RobotConfig()
+H = CFG.stances["default"].height_mm / 1000  # the rays' height: the coxa joints'
+DT = 0.02  # the board's frames at 50 Hz
+MAX_M = CFG.ir.max_distance_mm / 1000
+
+
+def reflex(**params: object) -> ObstacleReflex:
+    return ObstacleReflex(check_params(ObstacleReflex, params), name="obstacle", cfg=CFG)
+
+
+@dataclass
+class World:
+    """Flat ground with a box from ``near`` to ``far`` (m along the rays) ``height`` high."""
+
+    near: float
+    far: float
+    height: float
+
+    def range(self, down: float) -> float:
+        """What a ray from H pitched ``down`` meets, m (inf: nothing within range)."""
+        tan = math.tan(down)
+        z_face = H - self.near * tan
+        if 0.0 <= z_face <= self.height:
+            r = self.near / math.cos(down)
+        elif z_face > self.height and tan > 0 and (H - self.height) / tan <= self.far:
+            r = (H - self.height) / tan / math.cos(down)
+        elif tan > 0:
+            r = H / tan / math.cos(down)
+        else:
+            r = math.inf
+        return r if r <= MAX_M else math.inf
+
+
+def sweep(world: World, downs: list[float]) -> list[tuple[float, float]]:
+    return [ray_point(world.range(d), d, H) for d in downs]
+
+
+def test_a_box_is_an_obstacle_with_its_height_and_depth() -> None:
+    world = World(0.5, 0.8, 0.08)
+    downs = [math.radians(a) for a in range(8, 33)]
+    seen = profile(sweep(world, downs), min_height=0.05, tolerance=0.02, max_face_deg=50, origin=H)
+    assert seen.kind == "obstacle"
+    assert seen.height == pytest.approx(0.08, abs=1e-6)
+    assert seen.front == pytest.approx(0.5, abs=1e-6)
+    assert seen.depth == pytest.approx(0.3, abs=0.03)
+    assert seen.top_seen
+    assert seen.back_seen
+
+
+def test_a_wall_above_every_ray_has_no_top_seen() -> None:
+    world = World(0.5, 0.8, 0.6)
+    downs = [math.radians(a) for a in range(8, 33)]
+    seen = profile(sweep(world, downs), min_height=0.05, tolerance=0.02, max_face_deg=50)
+    assert seen.kind == "obstacle"
+    assert not seen.top_seen
+    assert seen.height > 0.2  # a lower bound: the highest ray's point on the face
+
+
+def test_a_ramp_is_a_slope_and_flat_ground_is_clear() -> None:
+    rise = math.radians(15)  # from 0.4 m on
+    points = []
+    for a in range(8, 33):
+        d = math.radians(a)
+        x_flat = H / math.tan(d)
+        x = x_flat if x_flat <= 0.4 else (H + 0.4 * math.tan(rise)) / (math.tan(d) + math.tan(rise))
+        points.append(ray_point(x / math.cos(d), d, H))
+    seen = profile(points, min_height=0.05, tolerance=0.02, max_face_deg=50)
+    assert seen.kind == "slope"
+    assert seen.face_deg == pytest.approx(15, abs=1)
+    flat = [ray_point(H / math.sin(d), d, H) for d in (0.3, 0.35, 0.4)]
+    assert profile(flat, min_height=0.05, tolerance=0.02, max_face_deg=50).kind == "clear"
+
+
+class Drive:
+    """The coordinator and the world around one reflex: the trochanter angle it asks is
+    the one every ray then has; the body goes forward at ``vx`` unless halted or blocked."""
+
+    def __init__(self, r: ObstacleReflex, world: World, vx: float = 0.1) -> None:
+        self.r, self.world, self.vx = r, world, vx
+        self.asks = Asks(CFG.locomotion.max_step_height_mm / 1000)
+        self.t = 0.0
+        self.said: list[ReflexRequest] = []
+
+    def run(self, seconds: float, *, vy: float = 0.0) -> None:
+        for _ in range(round(seconds / DT)):
+            self.t += DT
+            twist = self.asks.twist((self.vx, vy, 0.0))
+            activity = "walking" if any(twist) else "standing"
+            troch = self.asks.trochanter() or 0.0
+            self._take(self.r.react(self.t, locomotion_state(self.t, activity, twist=twist)))
+            self._take(self.r.react(self.t, self._motion(troch)))
+            down = self.r.mount + RAY_DOWN_PER_TROCHANTER * troch
+            r = self.world.range(down)
+            self._take(
+                self.r.react(
+                    self.t,
+                    ObstacleRanges(
+                        t=self.t, source="board", seq=None, counts=(0, 0), distances_m=(r, r)
+                    ),
+                )
+            )
+            # The body moves toward the box (the rays' distances shrink with it).
+            self.world.near -= twist[0] * DT
+            self.world.far -= twist[0] * DT
+
+    def _motion(self, troch: float) -> BodyMotion:
+        return BodyMotion(
+            t=self.t,
+            source="coordinator",
+            cycle=0,
+            twist=(0.0, 0.0, 0.0),
+            pose=(0.0,) * 6,
+            trochanter_rad=troch,
+            upside_down=False,
+        )
+
+    def _take(self, commands: object) -> None:
+        for c in commands:  # type: ignore[attr-defined]
+            assert isinstance(c, ReflexRequest)
+            self.asks.take(c)
+            self.said.append(c)
+
+
+def test_a_low_box_stops_the_walk_is_measured_then_climbed_with_a_higher_step() -> None:
+    r = reflex()
+    d = Drive(r, World(1.2, 1.5, 0.08))
+    d.run(6.0)
+    halts = [q for q in d.said if q.halt]
+    assert halts, "stopped before the box"
+    assert 0.5 < d.world.near < 0.75  # a 5 cm rise shows 0.66 m ahead
+    d.run(8.0)
+    climb = [q for q in d.said if q.step_height_m]
+    assert len(climb) == 1
+    assert climb[0].step_height_m == pytest.approx(0.08 + 0.03, abs=0.01)
+    assert "8 cm high" in climb[0].reason
+    assert r.seen is not None
+    # The depth within a sweep step: where the rays graze the top, 2° is 15 cm of ground.
+    assert r.seen.depth == pytest.approx(0.3, abs=0.05)
+    angles = [q.trochanter_rad for q in d.said if q.trochanter_rad]
+    assert max(angles) - min(angles) == pytest.approx(math.radians(24), abs=0.01)
+    assert d.asks.trochanter() is None
+    assert not d.asks.halts
+    assert r.active
+    d.run(20.0)  # 2 m at 0.1 m/s: past the box and the body's length
+    assert d.said[-1].step_height_m == 0.0
+    assert not r.active
+
+
+def test_a_wall_stops_the_robot_until_the_operator_steers_clear() -> None:
+    r = reflex()
+    d = Drive(r, World(1.0, 1.4, 0.5))
+    d.run(14.0)
+    block = [q for q in d.said if q.block_ahead]
+    assert block
+    assert "keeping off" in block[0].reason
+    near = d.world.near
+    d.run(3.0)
+    assert d.world.near == near  # nothing goes forward
+    assert d.asks.twist((0.1, 0.05, 0.0)) == (0.0, 0.05, 0.0)  # sidestepping does
+    d.world = World(math.inf, math.inf, 0.0)  # stepped aside: the rays see the floor
+    d.run(1.5)
+    assert d.said[-1].block_ahead is False
+    assert not r.active
+    assert not d.asks.blocks
+
+
+def test_its_parameters_are_checked() -> None:
+    with pytest.raises(ValueError, match=r"params\.see_m"):
+        reflex(see_m=0.01)
+    with pytest.raises(ValueError, match=r"params\.scan_deg"):
+        reflex(scan_deg=45)

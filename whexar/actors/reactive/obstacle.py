@@ -1,0 +1,377 @@
+"""The obstacle reflex: stop before what the rangefinders see, measure it, then climb it
+or keep off it (4.2.2, 6.7.4).
+
+Theory of operation
+-------------------
+The thesis sorts obstacles three ways (6.7.4): low ones the gait crosses (the
+leg stops on them: the early-contact stop, the elevator); ones too high for
+normal walking that the robot climbs after it "stops and measures their height
+and depth using a rangefinder"; and high ones it must avoid, which is
+navigation's work (4.2.3). Here:
+
+* **Profile.** Each reading of a front-leg rangefinder (5.3.5) is a point of
+  the ground ahead: a ray from the femur servo, at its height above where the
+  front feet stand (their measured points in the body frame, in stance: the
+  ground next to what the rays see, a ramp's if they stand on one; before
+  any, the stance's height), pitched down by the mount
+  (``ir.pitch_deg``) less the trochanter angle (which tilts the sensor, 5.3.5)
+  plus the body's pitch in its pose. Taken in the frame of the ground under
+  the feet (the trochanter follows the measured pitch, eq. 4.18), a slope is
+  level: only a change of ground shows. A point is ``(x, z)``: along the ray,
+  and up from the ground under the feet (:func:`ray_point`).
+* **Stop.** Walking forward, a point at least ``min_height_m`` up and nearer
+  than ``see_m``: the reflex halts the body (``ReflexRequest.halt``) — unless
+  the robot stands across a change of ground (its front feet ``level_m`` above
+  or below its rear ones: a ramp's foot, a box's edge), where the feet's plane
+  is no frame for the rays.
+* **Measure.** Standing, it sweeps the trochanters ``scan_deg`` either side of
+  their angle (``ReflexRequest.trochanter_rad``: all legs turn together, the
+  body sways over its feet), one ``scan_step_deg`` every ``settle_s``, taking a
+  reading at each: a profile from the ground in front over the obstacle to what
+  lies behind it (:func:`profile`). Its height is its highest point, its front
+  the nearest risen point, its depth how far its top runs. A rise whose face is
+  gentler than ``max_face_deg`` is a slope (the rangefinders see ramps too):
+  nothing to do.
+* **Climb** an obstacle at most ``climb_m`` high whose top the sweep saw: the
+  walk goes on with the step at least its height and ``clearance_m`` (a
+  ``ReflexRequest.step_height_m``; the coordinator keeps it within
+  ``locomotion.max_step_height_mm``), kept until the body has gone past it —
+  its front, its depth and ``pass_m`` more (the body's length behind the
+  rangefinders).
+* **Keep off** anything higher, or whose top it could not see: nothing goes
+  forward (``ReflexRequest.block_ahead``) until the rangefinders no longer see
+  it for ``clear_s``; turning, sidestepping and backing away stay the
+  operator's (the navigation 4.2.3 leaves avoidance to).
+
+It is active from the stop to the end of the climb or of the block. The thesis
+gives no figures for this reflex (6.7.4); the defaults are the measurements in
+docs/reflexes.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from pydantic import Field
+
+from whexar.actors.messages import BodyMotion, LegState, LocomotionState, ObstacleRanges
+from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
+from whexar.config import RobotConfig
+from whexar.kinematics.leg import fk_chain
+from whexar.runtime.messages import Message
+
+FORWARD = frozenset({"walking", "hybrid"})
+FRONT_LEGS = (0, 1)
+"""RF and LF: the legs that carry the rangefinders (5.3.5)."""
+REAR_LEGS = (4, 5)
+RAY_DOWN_PER_TROCHANTER = -1.0
+"""How a trochanter turn tilts the rays: the trochanter follows the body's pitch to keep
+them level (eq. 4.18), and a nose-up pitch is negative (eq. 5.7 on the board's axes), so
+turning it by +θ raises them by θ."""
+STILL_M_S = 1e-3
+
+Kind = Literal["clear", "slope", "obstacle"]
+
+
+class ObstacleParams(ReflexParams):
+    """The obstacle reflex's thresholds (docs/reflexes.md)."""
+
+    min_height_m: float = Field(0.05, gt=0.0, le=0.3)
+    """Lower than this is the ground's texture, m: the gait crosses it and the leg stops
+    on it (6.7.4's first kind); about the default step's height."""
+    see_m: float = Field(0.7, gt=0.1, le=1.4)
+    """Stop when a risen point is this near the rangefinders, m (level, along the ray):
+    a mount pitched 20° down meets the ground 0.75 m ahead, and a 5 cm rise 0.66 m."""
+    climb_m: float = Field(0.09, gt=0.0, le=0.35)
+    """The highest obstacle it climbs, m: with ``clearance_m`` within the tetrapod's
+    120 mm step (Table 5.9, ``locomotion.max_step_height_mm``)."""
+    clearance_m: float = Field(0.03, ge=0.0, le=0.2)
+    """The step clears a climbed obstacle by this much, m."""
+    scan_deg: float = Field(12.0, gt=0.0, le=30.0)
+    """The trochanter sweep either side of its angle, degrees (the body sways by the
+    legs' length × sin of it over its feet: 6 cm at 12°)."""
+    scan_step_deg: float = Field(2.0, gt=0.0, le=10.0)
+    """One reading every this much of the sweep, degrees."""
+    settle_s: float = Field(0.3, gt=0.0, le=5.0)
+    """Each sweep step's wait before its reading, s: the trochanters' travel and a
+    sensor frame."""
+    max_face_deg: float = Field(50.0, gt=0.0, lt=90.0)
+    """A rise steeper than this is an obstacle's face, degrees; gentler, a slope (the
+    steepest the robot walks: 32°, 6.7.6, with margin)."""
+    tolerance_m: float = Field(0.02, gt=0.0, le=0.1)
+    """Points within this of the highest belong to the top, m (the sensor's noise)."""
+    pass_m: float = Field(1.0, ge=0.0, le=3.0)
+    """After the obstacle's depth, the raised step is kept this much further, m: the
+    rear feet stand 0.65 m behind the rangefinders (the sensors 0.35 m ahead of the
+    body's centre, the rear feet 0.3 m behind it), and the walk slips a little."""
+    level_m: float = Field(0.025, gt=0.0, le=0.3)
+    """Front feet this much above or below the rear ones: the robot stands across a change
+    of ground, and nothing stops it (the rays' frame is the feet's plane), m."""
+    clear_s: float = Field(1.0, ge=0.0, le=30.0)
+    """A blocked way is free once the rangefinders have seen nothing risen within
+    ``see_m`` for this long, s."""
+
+
+@dataclass(frozen=True)
+class Profile:
+    """What a sweep saw (:func:`profile`): ``kind``; for an obstacle its ``front`` (m
+    along the ray), ``height`` and ``depth`` (m), whether a ray passed over its top
+    (``top_seen``: else the height is a lower bound) and beyond its back (``back_seen``:
+    else the depth is); for a slope its ``face_deg``."""
+
+    kind: Kind
+    front: float = math.inf
+    height: float = 0.0
+    depth: float = 0.0
+    top_seen: bool = False
+    back_seen: bool = False
+    face_deg: float = 90.0
+
+
+def ray_point(distance: float, down_rad: float, height: float) -> tuple[float, float]:
+    """The point a ray from ``height`` m, pitched down by ``down_rad``, meets at
+    ``distance`` m: (along, up) from the ground under the sensor; ``math.inf`` along for
+    nothing in range."""
+    if not math.isfinite(distance):
+        return (math.inf, -math.inf)
+    return (distance * math.cos(down_rad), height - distance * math.sin(down_rad))
+
+
+def profile(
+    points: Sequence[tuple[float, float]],
+    *,
+    min_height: float,
+    tolerance: float,
+    max_face_deg: float,
+    origin: float = math.inf,
+) -> Profile:
+    """Sort a sweep's points (:func:`ray_point`; ``x`` infinite: the ray met nothing)
+    into clear ground, a slope or an obstacle (module docstring). An obstacle's height is
+    the median of its top's points: the sensor's noise spreads them over ``tolerance``.
+    Given the rays' ``origin`` height, its back edge is placed between the last point on
+    its top and the next ray's crossing of the top's height (a sweep's steps are coarse
+    where the rays graze the top)."""
+    risen = [p for p in points if math.isfinite(p[0]) and p[1] >= min_height]
+    if not risen:
+        return Profile("clear")
+    top = max(z for _, z in risen)
+    front = min(x for x, _ in risen)
+    tops = [p for p in risen if p[1] >= top - tolerance]
+    first = min(tops)
+    lowest = min(risen, key=lambda p: (p[1], p[0]))
+    if lowest[0] >= first[0] or lowest == first:
+        before = [p for p in points if p[0] < front and p[1] < min_height]
+        lowest = max(before) if before else (first[0], 0.0)
+    run = first[0] - lowest[0]
+    face = 90.0 if run <= 1e-3 else math.degrees(math.atan2(first[1] - lowest[1], run))
+    if face < max_face_deg:
+        return Profile("slope", front=front, height=top, face_deg=face)
+    height = float(np.median([z for _, z in tops]))
+    back = max(x for x, _ in tops)
+    beyond = [p for p in points if p[0] > first[0] + tolerance and p[1] < top - tolerance]
+    passed = [p for p in beyond if p[0] > back and math.isfinite(p[0])]
+    if passed and origin > height:
+        # The back edge lies between the last point on the top and where the first ray
+        # that passed it crossed the top's height: the middle of the two.
+        crossing = min(x * (origin - height) / (origin - z) for x, z in passed)
+        back = (back + max(back, crossing)) / 2
+    return Profile(
+        "obstacle",
+        front=front,
+        height=height,
+        depth=back - front,
+        top_seen=bool(beyond),
+        back_seen=bool(passed),
+        face_deg=face,
+    )
+
+
+class ObstacleReflex(Reflex):
+    """Stops before an obstacle, measures it, climbs it or keeps off it (module
+    docstring)."""
+
+    inputs = ("ranges", "locomotion", "motion", "legs")
+    priority = 30
+    Params = ObstacleParams
+    params: ObstacleParams
+
+    def __init__(self, params: ReflexParams, *, name: str, cfg: RobotConfig) -> None:
+        super().__init__(params, name=name, cfg=cfg)
+        self.mount = math.radians(cfg.ir.pitch_deg)
+        chain = fk_chain(np.zeros(5), cfg.leg_geometry())
+        self.femur_dz = float(chain[1, 2])
+        """The femur joint (the sensors' axis) above the coxa joint, m (eq. 4.4–4.6)."""
+        self.phase: Literal["watching", "stopping", "scanning", "climbing", "blocked"] = "watching"
+        self.odometer = 0.0
+        """How far the body has gone forward, m (the coordinator's twist, integrated)."""
+        self.ignore_until = -math.inf
+        """Odometer reading before which risen points are what was measured last."""
+        self.climb_until = 0.0
+        self.state: LocomotionState | None = None
+        self.state_t: float | None = None
+        self.trochanter = 0.0
+        self.pose_z = 0.0
+        self.pose_pitch = 0.0
+        self.base = 0.0
+        self.angles: list[float] = []
+        self.step_t = 0.0
+        self.points: list[tuple[float, float]] = []
+        self.clear_since: float | None = None
+        self.seen: Profile | None = None
+        """The last sweep's profile."""
+        self.foot_z: dict[int, float] = {}
+        """Leg → its stance foot's height in the body frame, m (its latest)."""
+
+    # ------------------------------------------------------------------ inputs
+
+    def react(self, t: float, msg: Message) -> Iterable[Command]:
+        if isinstance(msg, LegState):
+            if msg.contact and msg.measured_foot is not None:
+                self.foot_z[msg.leg] = msg.measured_foot[2]
+            return ()
+        if isinstance(msg, BodyMotion):
+            self.trochanter = msg.trochanter_rad
+            self.pose_z, self.pose_pitch = msg.pose[2], msg.pose[4]
+            return ()
+        if isinstance(msg, LocomotionState):
+            return self._state(t, msg)
+        if isinstance(msg, ObstacleRanges):
+            return self._ranges(t, msg)
+        return ()
+
+    def height(self) -> float:
+        """The rays' height above the ground the front feet stand on, m."""
+        front = [self.foot_z[i] for i in FRONT_LEGS if i in self.foot_z]
+        if front:
+            return self.femur_dz - sum(front) / len(front)
+        stance = self.state.stance if self.state is not None else self.cfg.locomotion.stance
+        preset = self.cfg.stances.get(stance)
+        coxa = (preset.height_mm if preset is not None else 290.0) / 1000
+        return coxa + self.pose_z + self.femur_dz
+
+    def down(self) -> float:
+        """The rays' pitch below the ground's plane, rad."""
+        return self.mount + RAY_DOWN_PER_TROCHANTER * self.trochanter + self.pose_pitch
+
+    def _points(self, m: ObstacleRanges) -> list[tuple[float, float]]:
+        h, down = self.height(), self.down()
+        return [ray_point(d, down, h) for d in m.distances_m if d is not None]
+
+    def bent(self) -> bool:
+        """The feet do not stand in one plane: the front pair ``level_m`` or more above or
+        below the rear pair (a ramp's foot, a box's edge under the robot). The rays' frame
+        is the feet's plane, so their picture is not trusted then: no stop."""
+        front = [self.foot_z[i] for i in FRONT_LEGS if i in self.foot_z]
+        rear = [self.foot_z[i] for i in REAR_LEGS if i in self.foot_z]
+        if not front or not rear:
+            return False
+        return abs(sum(front) / len(front) - sum(rear) / len(rear)) >= self.params.level_m
+
+    def _risen(self, points: Iterable[tuple[float, float]]) -> bool:
+        p = self.params
+        return any(x <= p.see_m and z >= p.min_height_m for x, z in points)
+
+    def _state(self, t: float, s: LocomotionState) -> Iterable[Command]:
+        if self.state_t is not None and s.mode == "walk":
+            self.odometer += s.twist[0] * max(0.0, t - self.state_t)
+        self.state, self.state_t = s, t
+        still = all(abs(v) <= STILL_M_S for v in s.twist)
+        if self.phase == "stopping" and s.activity not in FORWARD and still:
+            return self._start_sweep(t)
+        if self.phase == "climbing" and self.odometer >= self.climb_until:
+            self.phase, self.active = "watching", False
+            return (self.request(t, step_height_m=0.0, reason="past the obstacle"),)
+        return ()
+
+    # ------------------------------------------------------------------ phases
+
+    def _ranges(self, t: float, m: ObstacleRanges) -> Iterable[Command]:
+        points = self._points(m)
+        s = self.state
+        if self.phase == "watching":
+            forward = s is not None and s.activity in FORWARD and s.twist[0] > STILL_M_S
+            fresh = self.odometer >= self.ignore_until and not self.bent()
+            if forward and fresh and self._risen(points):
+                self.phase, self.active = "stopping", True
+                self.reason = "something ahead: stopping to measure it"
+                return (self.request(t, halt=True, reason=self.reason),)
+            return ()
+        if self.phase == "scanning":
+            return self._sweep(t, points)
+        if self.phase == "blocked":
+            if self._risen(points):
+                self.clear_since = None
+            elif self.clear_since is None:
+                self.clear_since = t
+            if self.clear_since is not None and t - self.clear_since >= self.params.clear_s:
+                self.phase, self.active = "watching", False
+                return (self.request(t, block_ahead=False, reason="the way ahead is clear"),)
+        return ()
+
+    def _start_sweep(self, t: float) -> Iterable[Command]:
+        p = self.params
+        n = max(1, round(2 * p.scan_deg / p.scan_step_deg))
+        # The rays down first (the ground before the obstacle), then up over it.
+        sweep = np.linspace(p.scan_deg, -p.scan_deg, n + 1) * RAY_DOWN_PER_TROCHANTER
+        self.base = self.trochanter
+        self.angles = [self.base + math.radians(float(a)) for a in sweep]
+        self.points = []
+        self.phase = "scanning"
+        return self._aim(t)
+
+    def _aim(self, t: float) -> Iterable[Command]:
+        self.step_t = t
+        # 0 would withdraw the request: the coordinator's own angle, which is the base
+        angle = self.angles[0] or 1e-9
+        return (self.request(t, trochanter_rad=angle, reason="measuring the obstacle"),)
+
+    def _sweep(self, t: float, points: list[tuple[float, float]]) -> Iterable[Command]:
+        if t - self.step_t < self.params.settle_s:
+            return ()
+        self.points.extend(points)
+        self.angles.pop(0)
+        if self.angles:
+            return self._aim(t)
+        return self._decide(t)
+
+    def _decide(self, t: float) -> Iterable[Command]:
+        p = self.params
+        seen = self.seen = profile(
+            self.points,
+            min_height=p.min_height_m,
+            tolerance=p.tolerance_m,
+            max_face_deg=p.max_face_deg,
+            origin=self.height(),
+        )
+        done = self.request(t, trochanter_rad=0.0, halt=False, reason="measured")
+        yaw = math.radians(self._yaw())
+        ahead = seen.front * math.cos(yaw) if math.isfinite(seen.front) else 0.0
+        if seen.kind != "obstacle":
+            self.phase, self.active = "watching", False
+            self.ignore_until = self.odometer + ahead + p.pass_m
+            what = "a slope" if seen.kind == "slope" else "nothing"
+            return (self.request(t, trochanter_rad=0.0, halt=False, reason=f"{what} ahead"),)
+        size = f"{seen.height * 100:.0f} cm high, {seen.depth * 100:.0f} cm deep"
+        if seen.top_seen and seen.height <= p.climb_m:
+            self.phase = "climbing"
+            self.climb_until = self.odometer + ahead + seen.depth * math.cos(yaw) + p.pass_m
+            self.ignore_until = self.climb_until
+            self.reason = f"climbing an obstacle {size}"
+            return (
+                done,
+                self.request(t, step_height_m=seen.height + p.clearance_m, reason=self.reason),
+            )
+        self.phase, self.clear_since = "blocked", None
+        high = "higher than the sweep" if not seen.top_seen else size
+        self.reason = f"keeping off an obstacle {high}"
+        return (done, self.request(t, block_ahead=True, reason=self.reason))
+
+    def _yaw(self) -> float:
+        """The front coxae's yaw in the stance, degrees: the rays look that way."""
+        stance = self.state.stance if self.state is not None else self.cfg.locomotion.stance
+        preset = self.cfg.stances.get(stance)
+        return preset.front_rear_yaw_deg if preset is not None else 0.0
