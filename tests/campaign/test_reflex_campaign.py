@@ -131,6 +131,10 @@ ROWS = [
     _row("searching deep", no_foothold=1),
     _row("stepping snag", restepped=1, x_end_m=1.0),
     _row("heading lost coxa", heading_change_deg=-3.0),
+    _row("obstacle box", obstacle_activations=1, x_end_m=2.1),
+    _row("obstacle box", obstacle_activations=1, x_end_m=1.2),  # measured, not over
+    _row("obstacle wall", obstacle_activations=1, x_end_m=0.4),
+    _row("obstacle wall", obstacle_activations=0, x_end_m=0.4),  # stopped by no reflex
     _row(
         "nominal",
         {"terrain": "flat"},
@@ -168,6 +172,8 @@ def test_rows_are_judged_by_their_scenarios_criterion() -> None:
         "stepping snag": ("stepping", 1, 1),
         "heading lost coxa": ("heading-hold", 1, 1),
         "heading lost coxa alone": ("heading-hold", 0, 0),  # no such row here
+        "obstacle box": ("obstacle", 1, 2),
+        "obstacle wall": ("obstacle", 1, 2),
     }
     fired = false_triggers(ROWS)
     assert fired["flat"]["searching"] == (1, 3.0)
@@ -198,6 +204,8 @@ def test_the_campaign_file_builds_every_run() -> None:
         "stepping snag",
         "heading lost coxa",
         "heading lost coxa alone",
+        "obstacle box",
+        "obstacle wall",
         "sweep sill",
         "sweep slope23",
     }

@@ -27,8 +27,8 @@ swing ends ``completed``.
   given beside it (``latency_from_reading_cycles_p99``).
 * **cpu_ms_per_cycle** — the process CPU time from 5 to 20 s of the same walk
   with the whole reactive layer (the shipped reflexes — battery, elevator,
-  heading hold, searching, stepping — the terrain estimator and the gait
-  selector) less the same without any of it, divided by the control cycles in
+  heading hold, obstacle, searching, stepping, trochanter — the terrain estimator
+  and the gait selector) less the same without any of it, divided by the control cycles in
   the window. Medians of :data:`REPEATS` runs each, taken in turn, so that a
   burst of load beside the bench moves both. One more run times the reflexes'
   policies alone (every ``react`` and ``tick``): the part of it that is theirs
@@ -56,8 +56,10 @@ from whexar.actors.reactive.battery import Battery
 from whexar.actors.reactive.elevator import Elevator
 from whexar.actors.reactive.heading import HeadingHold
 from whexar.actors.reactive.layer import LEG_ACTOR, REFLEX_ACTOR
+from whexar.actors.reactive.obstacle import ObstacleReflex
 from whexar.actors.reactive.searching import Searching
 from whexar.actors.reactive.stepping import Stepping
+from whexar.actors.reactive.trochanter import Trochanter
 from whexar.bench import Figure, Progress, Report, percentile
 from whexar.bus import control_table as ct
 from whexar.bus.protocol import Instruction, PacketDecoder, parse_sync_write_params
@@ -75,7 +77,7 @@ PROBE_BASE_RAD: Final = -0.30
 PROBE_STEP_RAD: Final = 0.02
 PROBE_VALUES: Final = 8
 """The probe's angles: −0.30, −0.28 … −0.16 rad, in turn (within the femur's ±120°)."""
-SHIPPED: Final = ("elevator", "heading-hold", "searching", "stepping")
+SHIPPED: Final = ("elevator", "heading-hold", "obstacle", "searching", "stepping", "trochanter")
 """The shipped reflexes beside the robot graph's own (the battery's)."""
 LAYER_ACTORS: Final = (
     "whexar.actors.reactive:TerrainEstimatorActor",
@@ -132,14 +134,18 @@ def _timed(cls: type[Reflex]) -> type[Reflex]:
 TimedBattery = _timed(Battery)
 TimedElevator = _timed(Elevator)
 TimedHeadingHold = _timed(HeadingHold)
+TimedObstacle = _timed(ObstacleReflex)
 TimedSearching = _timed(Searching)
 TimedStepping = _timed(Stepping)
+TimedTrochanter = _timed(Trochanter)
 TIMED: Final = {
     "battery": "whexar.bench.reflex:TimedBattery",
     "elevator": "whexar.bench.reflex:TimedElevator",
     "heading-hold": "whexar.bench.reflex:TimedHeadingHold",
+    "obstacle": "whexar.bench.reflex:TimedObstacle",
     "searching": "whexar.bench.reflex:TimedSearching",
     "stepping": "whexar.bench.reflex:TimedStepping",
+    "trochanter": "whexar.bench.reflex:TimedTrochanter",
 }
 
 
@@ -351,8 +357,8 @@ def run(progress: Progress = None, *, repeats: int = REPEATS, end_s: float = END
         f"{policies_ms * 1e3:.1f} µs per cycle; the rest of what they add is receiving and "
         "sending, below the noise of the runs' difference",
         "the layer: the reflexes battery (the robot graph's), elevator, heading hold, "
-        "searching, stepping; the terrain estimator and the gait selector (with the IMU's "
-        "samples they read)",
+        "obstacle, searching, stepping, trochanter; the terrain estimator and the gait "
+        "selector (with the IMU's samples they read)",
         f"the legs' contact estimate, in the legs whichever run: {contact_ms * 1e3:.1f} µs "
         "per cycle (six estimates)",
     ]

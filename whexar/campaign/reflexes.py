@@ -42,7 +42,7 @@ if TYPE_CHECKING:
     from whexar.sim.run import SimResult
 
 REPORT_NAME: Final = "reflex-campaign"
-REFLEXES: Final = ("elevator", "searching", "stepping", "heading-hold")
+REFLEXES: Final = ("elevator", "searching", "stepping", "heading-hold", "obstacle")
 """The shipped reflexes the campaign runs (the battery's never fires on the bench supply)."""
 TARGET_SUCCESS: Final = 0.9
 TARGET_FALSE_PER_10_MIN: Final = 1.0
@@ -149,6 +149,17 @@ CRITERIA: Final[Mapping[str, tuple[str, str, Callable[[Row], bool]]]] = {
         "heading-hold",
         "the same, the other reflexes off",
         lambda r: _upright(r) and abs(_n(r, "heading_change_deg")) <= 5.0,
+    ),
+    "obstacle box": (
+        "obstacle",
+        "an 8 × 30 cm box at x = 1.3 m: measured, climbed, past it (x ≥ 1.9 m) in 40 s, upright",
+        lambda r: _upright(r) and _n(r, "obstacle_activations") >= 1 and _n(r, "x_end_m") >= 1.9,
+    ),
+    "obstacle wall": (
+        "obstacle",
+        "a 40 cm wall at x = 1.3 m: kept off, the front legs short of it (x ≤ 0.8 m) to "
+        "20 s, upright",
+        lambda r: _upright(r) and _n(r, "obstacle_activations") >= 1 and _n(r, "x_end_m") <= 0.8,
     ),
 }
 """Run label → (the reflex it tests, the criterion in words, the criterion)."""
