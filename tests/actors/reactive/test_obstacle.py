@@ -163,7 +163,8 @@ def test_a_low_box_stops_the_walk_is_measured_then_climbed_with_a_higher_step() 
     assert max(angles) - min(angles) == pytest.approx(math.radians(24), abs=0.01)
     assert d.asks.trochanter() is None
     assert not d.asks.halts
-    assert r.active
+    assert not r.active  # it decided: the legs' reflexes are free again
+    assert r.phase == "climbing"
     d.run(20.0)  # 2 m at 0.1 m/s: past the box and the body's length
     assert d.said[-1].step_height_m == 0.0
     assert not r.active

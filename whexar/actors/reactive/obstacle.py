@@ -15,15 +15,25 @@ navigation's work (4.2.3). Here:
   ground next to what the rays see, a ramp's if they stand on one; before
   any, the stance's height), pitched down by the mount
   (``ir.pitch_deg``) less the trochanter angle (which tilts the sensor, 5.3.5)
-  plus the body's pitch in its pose. Taken in the frame of the ground under
-  the feet (the trochanter follows the measured pitch, eq. 4.18), a slope is
-  level: only a change of ground shows. A point is ``(x, z)``: along the ray,
+  plus the rise of the feet's plane ahead in the body frame (a least-squares
+  line through the stance feet: the body pitched nose down over its feet).
+  Taken in the plane of the feet (the body keeps parallel to a slope, the
+  trochanter following the pitch, eq. 4.18), a slope is level: only a change
+  of ground shows. A point is ``(x, z)``: along the ray,
   and up from the ground under the feet (:func:`ray_point`).
+* **Calibration.** Each rangefinder's gain differs from part to part (±13 %
+  of its output swing, Sharp GP2Y0A21YK data sheet: ±23 % of a distance through
+  eq. 5.5), enough to lift the floor 5 cm in the rays' picture. While the robot
+  keeps still on level feet — seated, standing — each ray meets the floor at the
+  rays' height over the sine of their pitch; the reflex learns each sensor's
+  scale from that (``learn_tau_s``), within ``max_scale_error`` of 1 (further,
+  something stands in front), as heading hold learns the gyroscope's level.
 * **Stop.** Walking forward, a point at least ``min_height_m`` up and nearer
-  than ``see_m``: the reflex halts the body (``ReflexRequest.halt``) — unless
-  the robot stands across a change of ground (its front feet ``level_m`` above
-  or below its rear ones: a ramp's foot, a box's edge), where the feet's plane
-  is no frame for the rays.
+  than ``see_m``, in ``confirm_frames`` readings in a row: the reflex halts the
+  body (``ReflexRequest.halt``) — unless the robot stands across a change of
+  ground (its front feet ``level_m`` above or below its rear ones: a ramp's
+  foot, a box's edge; a foot ``uneven_m`` off the others), where the feet's
+  plane is no frame for the rays.
 * **Measure.** Standing, it sweeps the trochanters ``scan_deg`` either side of
   their angle (``ReflexRequest.trochanter_rad``: all legs turn together, the
   body sways over its feet), one ``scan_step_deg`` every ``settle_s``, taking a
@@ -43,7 +53,9 @@ navigation's work (4.2.3). Here:
   it for ``clear_s``; turning, sidestepping and backing away stay the
   operator's (the navigation 4.2.3 leaves avoidance to).
 
-It is active from the stop to the end of the climb or of the block. The thesis
+It is active from the stop to its decision, and while it keeps off: the
+searching, stepping and elevator reflexes are held back meanwhile (a swing put
+down by the halt, a foot carried by the sweep are no lost ground and no slip). The thesis
 gives no figures for this reflex (6.7.4); the defaults are the measurements in
 docs/reflexes.md.
 """
@@ -65,6 +77,9 @@ from whexar.kinematics.leg import fk_chain
 from whexar.runtime.messages import Message
 
 FORWARD = frozenset({"walking", "hybrid"})
+STILL = frozenset({"standing"})
+"""The activity in which the rangefinders learn their scale: standing still (seated, the
+rays meet the floor 0.23 m ahead, where the sensor's output folds back, 5.3.5)."""
 FRONT_LEGS = (0, 1)
 """RF and LF: the legs that carry the rangefinders (5.3.5)."""
 REAR_LEGS = (4, 5)
@@ -86,9 +101,9 @@ class ObstacleParams(ReflexParams):
     see_m: float = Field(0.7, gt=0.1, le=1.4)
     """Stop when a risen point is this near the rangefinders, m (level, along the ray):
     a mount pitched 20° down meets the ground 0.75 m ahead, and a 5 cm rise 0.66 m."""
-    climb_m: float = Field(0.09, gt=0.0, le=0.35)
-    """The highest obstacle it climbs, m: with ``clearance_m`` within the tetrapod's
-    120 mm step (Table 5.9, ``locomotion.max_step_height_mm``)."""
+    climb_m: float = Field(0.1, gt=0.0, le=0.35)
+    """The highest obstacle it climbs, m: the tetrapod's 120 mm step (Table 5.9,
+    ``locomotion.max_step_height_mm``) clears it by 2 cm."""
     clearance_m: float = Field(0.03, ge=0.0, le=0.2)
     """The step clears a climbed obstacle by this much, m."""
     scan_deg: float = Field(12.0, gt=0.0, le=30.0)
@@ -111,6 +126,21 @@ class ObstacleParams(ReflexParams):
     level_m: float = Field(0.025, gt=0.0, le=0.3)
     """Front feet this much above or below the rear ones: the robot stands across a change
     of ground, and nothing stops it (the rays' frame is the feet's plane), m."""
+    confirm_frames: int = Field(6, ge=1, le=100)
+    """Readings in a row of one rangefinder that must see a rise before it stops the
+    walk: the floor's points reach 7 cm for up to 4 frames while walking (the body's
+    sway; 1 % of frames, docs/reflexes.md); an obstacle stays in view for seconds."""
+    learn_tau_s: float = Field(0.5, gt=0.0, le=60.0)
+    """Time constant of each rangefinder's scale, learnt against the floor while the robot
+    keeps still, s."""
+    max_scale_error: float = Field(0.25, ge=0.0, le=0.5)
+    """A floor reading implying a scale further than this from 1 is not learnt from
+    (something stands in front): the Sharp GP2Y0A21YK's output swing spreads ±13 % part
+    to part (data sheet), ±23 % of distance through eq. 5.5's exponent."""
+    uneven_m: float = Field(0.015, gt=0.0, le=0.3)
+    """A stance foot this far above or below the feet's mean height: the robot stands on
+    uneven ground, its body rocked over it (a foot at a trench's edge), and nothing stops
+    it, m. Walking on the flat the feet stay within 5 mm (docs/reflexes.md)."""
     clear_s: float = Field(1.0, ge=0.0, le=30.0)
     """A blocked way is free once the rangefinders have seen nothing risen within
     ``see_m`` for this long, s."""
@@ -196,6 +226,9 @@ class ObstacleReflex(Reflex):
 
     inputs = ("ranges", "locomotion", "motion", "legs")
     priority = 30
+    inhibits = ("reflex-searching", "reflex-stepping", "reflex-elevator")
+    """While it stops and measures, the legs' own reflexes are held back: a swing put
+    down by the halt, a foot carried by the sweep, are no lost ground nor slip."""
     Params = ObstacleParams
     params: ObstacleParams
 
@@ -223,8 +256,16 @@ class ObstacleReflex(Reflex):
         self.clear_since: float | None = None
         self.seen: Profile | None = None
         """The last sweep's profile."""
+        self.frames = [0, 0]
+        """Per rangefinder, how many readings in a row have seen something risen."""
+        self.scale = [1.0, 1.0]
+        """Each rangefinder's scale (right, left), learnt against the floor."""
+        self.learnt = False
+        self.learn_t: float | None = None
         self.foot_z: dict[int, float] = {}
         """Leg → its stance foot's height in the body frame, m (its latest)."""
+        self.foot_x: dict[int, float] = {}
+        """… and how far forward it stands, m."""
 
     # ------------------------------------------------------------------ inputs
 
@@ -232,6 +273,7 @@ class ObstacleReflex(Reflex):
         if isinstance(msg, LegState):
             if msg.contact and msg.measured_foot is not None:
                 self.foot_z[msg.leg] = msg.measured_foot[2]
+                self.foot_x[msg.leg] = msg.measured_foot[0]
             return ()
         if isinstance(msg, BodyMotion):
             self.trochanter = msg.trochanter_rad
@@ -254,22 +296,64 @@ class ObstacleReflex(Reflex):
         return coxa + self.pose_z + self.femur_dz
 
     def down(self) -> float:
-        """The rays' pitch below the ground's plane, rad."""
-        return self.mount + RAY_DOWN_PER_TROCHANTER * self.trochanter + self.pose_pitch
+        """The rays' pitch below the plane of the feet, rad: the mount less the trochanter's
+        tilt, plus the plane's rise ahead in the body frame (the body pitched nose down
+        over it, a foot gone down into a hole; before any foot, the body's pose)."""
+        ray = self.mount + RAY_DOWN_PER_TROCHANTER * self.trochanter
+        legs = list(self.foot_z)
+        if len(legs) < 3:
+            return ray + self.pose_pitch
+        xs = [self.foot_x[i] for i in legs]
+        zs = [self.foot_z[i] for i in legs]
+        mx, mz = sum(xs) / len(xs), sum(zs) / len(zs)
+        var = sum((x - mx) ** 2 for x in xs)
+        if var < 1e-4:
+            return ray + self.pose_pitch
+        rise = sum((x - mx) * (z - mz) for x, z in zip(xs, zs, strict=True)) / var
+        return ray + math.atan(rise)
 
     def _points(self, m: ObstacleRanges) -> list[tuple[float, float]]:
         h, down = self.height(), self.down()
-        return [ray_point(d, down, h) for d in m.distances_m if d is not None]
+        return [
+            ray_point(d * k, down, h)
+            for d, k in zip(m.distances_m, self.scale, strict=True)
+            if d is not None
+        ]
+
+    def _learn(self, t: float, m: ObstacleRanges) -> None:
+        """Keeping still on level feet, each ray meets the floor at h / sin(down): its
+        reading against that is the sensor's scale (module docstring)."""
+        dt = 0.0 if self.learn_t is None else min(t - self.learn_t, 1.0)
+        self.learn_t = t
+        s, p = self.state, self.params
+        still = s is not None and s.activity in STILL and all(abs(v) <= STILL_M_S for v in s.twist)
+        front = [i for i in FRONT_LEGS if i in self.foot_z]
+        down = self.down()
+        if not still or len(front) < len(FRONT_LEGS) or self.bent() or down < 0.05:
+            return
+        floor = self.height() / math.sin(down)
+        k = min(1.0, dt / p.learn_tau_s)
+        for i, d in enumerate(m.distances_m):
+            if d is None or not math.isfinite(d) or d <= 0.0:
+                continue
+            ratio = floor / d
+            if abs(ratio - 1.0) <= p.max_scale_error:
+                self.scale[i] += (ratio - self.scale[i]) * (k if self.learnt else 1.0)
+                self.learnt = True
 
     def bent(self) -> bool:
         """The feet do not stand in one plane: the front pair ``level_m`` or more above or
-        below the rear pair (a ramp's foot, a box's edge under the robot). The rays' frame
-        is the feet's plane, so their picture is not trusted then: no stop."""
+        below the rear pair (a ramp's foot, a box's edge under the robot), or one foot
+        ``uneven_m`` from their mean height. The rays' frame is the feet's plane, so their
+        picture is not trusted then: no stop."""
         front = [self.foot_z[i] for i in FRONT_LEGS if i in self.foot_z]
         rear = [self.foot_z[i] for i in REAR_LEGS if i in self.foot_z]
         if not front or not rear:
             return False
-        return abs(sum(front) / len(front) - sum(rear) / len(rear)) >= self.params.level_m
+        if abs(sum(front) / len(front) - sum(rear) / len(rear)) >= self.params.level_m:
+            return True
+        mean = sum(self.foot_z.values()) / len(self.foot_z)
+        return any(abs(z - mean) >= self.params.uneven_m for z in self.foot_z.values())
 
     def _risen(self, points: Iterable[tuple[float, float]]) -> bool:
         p = self.params
@@ -290,12 +374,18 @@ class ObstacleReflex(Reflex):
     # ------------------------------------------------------------------ phases
 
     def _ranges(self, t: float, m: ObstacleRanges) -> Iterable[Command]:
+        if self.phase == "watching":
+            self._learn(t, m)
         points = self._points(m)
         s = self.state
         if self.phase == "watching":
             forward = s is not None and s.activity in FORWARD and s.twist[0] > STILL_M_S
+            h, down = self.height(), self.down()
+            for i, (d, k) in enumerate(zip(m.distances_m, self.scale, strict=True)):
+                risen = d is not None and self._risen([ray_point(d * k, down, h)])
+                self.frames[i] = self.frames[i] + 1 if risen else 0
             fresh = self.odometer >= self.ignore_until and not self.bent()
-            if forward and fresh and self._risen(points):
+            if forward and fresh and max(self.frames) >= self.params.confirm_frames:
                 self.phase, self.active = "stopping", True
                 self.reason = "something ahead: stopping to measure it"
                 return (self.request(t, halt=True, reason=self.reason),)
@@ -357,7 +447,7 @@ class ObstacleReflex(Reflex):
             return (self.request(t, trochanter_rad=0.0, halt=False, reason=f"{what} ahead"),)
         size = f"{seen.height * 100:.0f} cm high, {seen.depth * 100:.0f} cm deep"
         if seen.top_seen and seen.height <= p.climb_m:
-            self.phase = "climbing"
+            self.phase, self.active = "climbing", False  # the legs' reflexes free again
             self.climb_until = self.odometer + ahead + seen.depth * math.cos(yaw) + p.pass_m
             self.ignore_until = self.climb_until
             self.reason = f"climbing an obstacle {size}"
