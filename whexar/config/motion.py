@@ -225,11 +225,10 @@ class ContactSpec(Section):
     """A searching foot whose distance from its goal's point grew by this much since the
     search began is held by the ground it looks for: found, before the force sensor says
     so where the leg carries little load (the front legs uphill on 30°)."""
-    touchdown_s: Positive = 0.35
+    touchdown_s: Positive = 0.25
     """A swing that ended with no contact is judged this long after its end: ``completed``
-    if contact came meanwhile, else ``no_contact``. The FSR's contact lags the swing's end
-    by up to 0.13 s on the flat; on 30°, the front feet, lightly loaded uphill, by up to
-    0.27 s (docs/reflexes.md)."""
+    if contact came meanwhile, else ``no_contact`` (the FSR's contact lags the swing's end
+    by up to 0.13 s, docs/reflexes.md)."""
 
     def model(self, current_a: float) -> ContactModel:
         """The estimator's model, ``current_a`` the femur current that reads as load."""

@@ -195,12 +195,12 @@ def swing_ends(out: list[Message]) -> list[SwingEnded]:
 def swing(
     leg: LegController, angles: list[float], amps: Callable[[float, float], float]
 ) -> list[Message]:
-    """A 0.5 s swing from 1.1 s, run to 2.0 s (past its touchdown_s); the femur draws
-    ``amps(u, foot z)`` at the swing's phase u and the foot's height of the cycle before."""
+    """A 0.5 s swing from 1.1 s, run to 1.9 s; the femur draws ``amps(u, foot z)`` at the
+    swing's phase u and the foot's height of the cycle before."""
     cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
     out: list[Message] = []
     t = 1.1
-    while t < 2.0:
+    while t < 1.9:
         assert leg.foot is not None
         current = amps((t - 1.1) / 0.5, leg.foot[2])
         steps = (cmd,) if t == 1.1 else ()
@@ -232,7 +232,7 @@ def test_a_swing_without_ground_ends_with_no_contact_once_touchdown_has_passed()
     out = run(
         leg,
         1.1,
-        2.0,
+        1.9,
         angles,
         femur_a=0.0,
         steps=(step("swing", 1.1, 0.5, swing_target(), height_m=0.04),),
