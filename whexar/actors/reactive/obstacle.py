@@ -312,12 +312,12 @@ class ObstacleReflex(Reflex):
         rise = sum((x - mx) * (z - mz) for x, z in zip(xs, zs, strict=True)) / var
         return ray + math.atan(rise)
 
-    def _points(self, m: ObstacleRanges) -> list[tuple[float, float]]:
+    def _points(self, m: ObstacleRanges) -> list[tuple[float, float] | None]:
+        """Each rangefinder's point (right, left); None where it gives no reading."""
         h, down = self.height(), self.down()
         return [
-            ray_point(d * k, down, h)
+            None if d is None else ray_point(d * k, down, h)
             for d, k in zip(m.distances_m, self.scale, strict=True)
-            if d is not None
         ]
 
     def _learn(self, t: float, m: ObstacleRanges) -> None:
@@ -376,13 +376,13 @@ class ObstacleReflex(Reflex):
     def _ranges(self, t: float, m: ObstacleRanges) -> Iterable[Command]:
         if self.phase == "watching":
             self._learn(t, m)
-        points = self._points(m)
+        each = self._points(m)
+        points = [p for p in each if p is not None]
         s = self.state
         if self.phase == "watching":
             forward = s is not None and s.activity in FORWARD and s.twist[0] > STILL_M_S
-            h, down = self.height(), self.down()
-            for i, (d, k) in enumerate(zip(m.distances_m, self.scale, strict=True)):
-                risen = d is not None and self._risen([ray_point(d * k, down, h)])
+            for i, p in enumerate(each):
+                risen = p is not None and self._risen([p])
                 self.frames[i] = self.frames[i] + 1 if risen else 0
             fresh = self.odometer >= self.ignore_until and not self.bent()
             if forward and fresh and max(self.frames) >= self.params.confirm_frames:
