@@ -17,7 +17,7 @@ from whexar.actors.messages import (
 )
 from whexar.actors.reactive.terrain import SETTLE_S, TerrainEstimator
 from whexar.config import RobotConfig
-from whexar.testing.reflexes import leg_state
+from whexar.testing.reflexes import leg_state, locomotion_state
 
 CFG = RobotConfig()
 
@@ -116,6 +116,17 @@ def test_an_obstacle_is_counted_as_it_comes_near_then_again_once_clear() -> None
         )
     # Near at 0.35 (one); 0.45 then 0.38 is the same obstacle (not beyond 0.6); 0.7 clears.
     assert est.estimate(1.0).obstacles == 2
+
+
+def test_keeping_still_the_floor_near_the_feet_is_no_obstacle() -> None:
+    est = TerrainEstimator(CFG)
+    est.locomotion(locomotion_state(0.0, "seated"))
+    for k, d in enumerate([0.23, 0.8, 0.23]):  # the floor, seated; standing; seated again
+        est.ranges(ObstacleRanges(t=0.1 * k, source="s", seq=k, counts=(0, 0), distances_m=(d, d)))
+    assert est.estimate(0.5).obstacles == 0
+    est.locomotion(walking(0.6, 2.0))
+    est.ranges(ObstacleRanges(t=0.7, source="s", seq=5, counts=(0, 0), distances_m=(0.3, None)))
+    assert est.estimate(1.0).obstacles == 1
 
 
 def test_lost_supports_count_believed_no_contact_swings_and_stances_that_lose_ground() -> None:

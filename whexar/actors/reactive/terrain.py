@@ -17,8 +17,9 @@ gait runs), as one :class:`TerrainEstimate` every ``terrain.tick_s``:
   to specific threshold, the terrain is considered flat" (4.2.3);
 * **pitch and roll** — the body's tilt (the IMU's, eq. 5.6–5.7), averaged over
   the window, apart: "Different counters will be used for pitch and roll";
-* **obstacles** — the rangefinders' approaches: a reading nearer than
-  ``terrain.obstacle_near_m`` after one beyond ``obstacle_clear_m``;
+* **obstacles** — the rangefinders' approaches while the body moves: a reading
+  nearer than ``terrain.obstacle_near_m`` after one beyond ``obstacle_clear_m``
+  (seated, the rays pitched down meet the floor 0.23 m ahead);
 * **bumps** — the IMU's jolts, readings further than ``terrain.bump_g`` from
   1 g, those closer than ``bump_gap_s`` counted once ("if the robot travels on
   wheels, the higher count of bumps means ... difficult terrain");
@@ -79,6 +80,10 @@ class TerrainEstimator:
         self.lost: deque[float] = deque()
         self.last_bump = -math.inf
         self.armed = [True, True]
+        self.still = False
+        """The body goes nowhere (seated, standing up, standing): the rangefinders,
+        pitched down (``ir.pitch_deg``), then meet the floor near the feet, and nothing
+        comes near."""
         """Per rangefinder: the last reading was clear, so the next near one counts."""
         self.losses = StanceLoss(N_LEGS, cfg.contact.touchdown_s, self.spec.lost_confidence)
 
@@ -92,8 +97,10 @@ class TerrainEstimator:
     # ----------------------------------------------------------------- readings
 
     def locomotion(self, msg: LocomotionState) -> None:
-        """The coordinator's state: the gait cycle the window follows."""
+        """The coordinator's state: the gait cycle the window follows, and whether the
+        body goes anywhere."""
         self.cycle_s = msg.cycle_s if msg.activity in ("walking", "hybrid") else 0.0
+        self.still = msg.activity not in ("walking", "riding", "hybrid")
 
     def swing(self, msg: SwingEnded) -> None:
         """A swing's end: ground met above the expected, or none where expected."""
@@ -129,7 +136,7 @@ class TerrainEstimator:
             if d is None:
                 continue  # no reading: nothing known, nothing counted
             if d < s.obstacle_near_m:
-                if self.armed[k]:
+                if self.armed[k] and not self.still:
                     self.obstacles.append(msg.t)
                     self.armed[k] = False
             elif d > s.obstacle_clear_m:
