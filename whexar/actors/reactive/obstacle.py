@@ -72,7 +72,7 @@ from pydantic import Field
 
 from whexar.actors.messages import BodyMotion, LegState, LocomotionState, ObstacleRanges
 from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
-from whexar.config import RobotConfig
+from whexar.config import RobotConfig, StanceSpec
 from whexar.kinematics.leg import fk_chain
 from whexar.runtime.messages import Message
 
@@ -249,7 +249,6 @@ class ObstacleReflex(Reflex):
         self.trochanter = 0.0
         self.pose_z = 0.0
         self.pose_pitch = 0.0
-        self.base = 0.0
         self.angles: list[float] = []
         self.step_t = 0.0
         self.points: list[tuple[float, float]] = []
@@ -290,8 +289,7 @@ class ObstacleReflex(Reflex):
         front = [self.foot_z[i] for i in FRONT_LEGS if i in self.foot_z]
         if front:
             return self.femur_dz - sum(front) / len(front)
-        stance = self.state.stance if self.state is not None else self.cfg.locomotion.stance
-        preset = self.cfg.stances.get(stance)
+        preset = self._stance()
         coxa = (preset.height_mm if preset is not None else 290.0) / 1000
         return coxa + self.pose_z + self.femur_dz
 
@@ -312,15 +310,15 @@ class ObstacleReflex(Reflex):
         rise = sum((x - mx) * (z - mz) for x, z in zip(xs, zs, strict=True)) / var
         return ray + math.atan(rise)
 
-    def _points(self, m: ObstacleRanges) -> list[tuple[float, float] | None]:
-        """Each rangefinder's point (right, left); None where it gives no reading."""
-        h, down = self.height(), self.down()
+    def _points(self, m: ObstacleRanges, h: float, down: float) -> list[tuple[float, float] | None]:
+        """Each rangefinder's point (right, left) for rays at height ``h`` pitched ``down``;
+        None where it gives no reading."""
         return [
             None if d is None else ray_point(d * k, down, h)
             for d, k in zip(m.distances_m, self.scale, strict=True)
         ]
 
-    def _learn(self, t: float, m: ObstacleRanges) -> None:
+    def _learn(self, t: float, m: ObstacleRanges, h: float, down: float, bent: bool) -> None:
         """Keeping still on level feet, each ray meets the floor at h / sin(down): its
         reading against that is the sensor's scale (module docstring)."""
         dt = 0.0 if self.learn_t is None else min(t - self.learn_t, 1.0)
@@ -328,10 +326,9 @@ class ObstacleReflex(Reflex):
         s, p = self.state, self.params
         still = s is not None and s.activity in STILL and all(abs(v) <= STILL_M_S for v in s.twist)
         front = [i for i in FRONT_LEGS if i in self.foot_z]
-        down = self.down()
-        if not still or len(front) < len(FRONT_LEGS) or self.bent() or down < 0.05:
+        if not still or len(front) < len(FRONT_LEGS) or bent or down < 0.05:
             return
-        floor = self.height() / math.sin(down)
+        floor = h / math.sin(down)
         k = min(1.0, dt / p.learn_tau_s)
         for i, d in enumerate(m.distances_m):
             if d is None or not math.isfinite(d) or d <= 0.0:
@@ -374,9 +371,11 @@ class ObstacleReflex(Reflex):
     # ------------------------------------------------------------------ phases
 
     def _ranges(self, t: float, m: ObstacleRanges) -> Iterable[Command]:
+        h, down = self.height(), self.down()
+        bent = self.phase == "watching" and self.bent()
         if self.phase == "watching":
-            self._learn(t, m)
-        each = self._points(m)
+            self._learn(t, m, h, down, bent)
+        each = self._points(m, h, down)
         points = [p for p in each if p is not None]
         s = self.state
         if self.phase == "watching":
@@ -384,7 +383,7 @@ class ObstacleReflex(Reflex):
             for i, p in enumerate(each):
                 risen = p is not None and self._risen([p])
                 self.frames[i] = self.frames[i] + 1 if risen else 0
-            fresh = self.odometer >= self.ignore_until and not self.bent()
+            fresh = self.odometer >= self.ignore_until and not bent
             if forward and fresh and max(self.frames) >= self.params.confirm_frames:
                 self.phase, self.active = "stopping", True
                 self.reason = "something ahead: stopping to measure it"
@@ -407,8 +406,7 @@ class ObstacleReflex(Reflex):
         n = max(1, round(2 * p.scan_deg / p.scan_step_deg))
         # The rays down first (the ground before the obstacle), then up over it.
         sweep = np.linspace(p.scan_deg, -p.scan_deg, n + 1) * RAY_DOWN_PER_TROCHANTER
-        self.base = self.trochanter
-        self.angles = [self.base + math.radians(float(a)) for a in sweep]
+        self.angles = [self.trochanter + math.radians(float(a)) for a in sweep]
         self.points = []
         self.phase = "scanning"
         return self._aim(t)
@@ -437,7 +435,6 @@ class ObstacleReflex(Reflex):
             max_face_deg=p.max_face_deg,
             origin=self.height(),
         )
-        done = self.request(t, trochanter_rad=0.0, halt=False, reason="measured")
         yaw = math.radians(self._yaw())
         ahead = seen.front * math.cos(yaw) if math.isfinite(seen.front) else 0.0
         if seen.kind != "obstacle":
@@ -445,6 +442,7 @@ class ObstacleReflex(Reflex):
             self.ignore_until = self.odometer + ahead + p.pass_m
             what = "a slope" if seen.kind == "slope" else "nothing"
             return (self.request(t, trochanter_rad=0.0, halt=False, reason=f"{what} ahead"),)
+        done = self.request(t, trochanter_rad=0.0, halt=False, reason="measured")
         size = f"{seen.height * 100:.0f} cm high, {seen.depth * 100:.0f} cm deep"
         if seen.top_seen and seen.height <= p.climb_m:
             self.phase, self.active = "climbing", False  # the legs' reflexes free again
@@ -460,8 +458,12 @@ class ObstacleReflex(Reflex):
         self.reason = f"keeping off an obstacle {high}"
         return (done, self.request(t, block_ahead=True, reason=self.reason))
 
+    def _stance(self) -> StanceSpec | None:
+        """The stance the coordinator stands in (the configured one before it says)."""
+        stance = self.state.stance if self.state is not None else self.cfg.locomotion.stance
+        return self.cfg.stances.get(stance)
+
     def _yaw(self) -> float:
         """The front coxae's yaw in the stance, degrees: the rays look that way."""
-        stance = self.state.stance if self.state is not None else self.cfg.locomotion.stance
-        preset = self.cfg.stances.get(stance)
+        preset = self._stance()
         return preset.front_rear_yaw_deg if preset is not None else 0.0
