@@ -481,3 +481,23 @@ def test_the_trochanter_carries_the_foot_on_its_arc() -> None:
     assert foot == pytest.approx(expected, abs=1e-6)
     # What the leg says is its plan, in the upright frame, which the arc does not change.
     assert leg.foot == pytest.approx(NEUTRAL)
+
+
+def test_a_stop_during_a_touchdown_waits_for_it_before_judging() -> None:
+    leg, angles = placed()
+    # The swing ends at 1.6 s, no contact yet; a hold (the walk stops) comes at 1.65 s and
+    # the sensor feels the ground at 1.75 s (its lag): completed, not a foot left hanging.
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
+    hold = step("hold", 1.65, 0.2, swing_target())
+    out: list[Message] = []
+    t = 1.1
+    while t < 2.2:
+        current = LOADED_A if t >= 1.75 else 0.0
+        steps = (cmd,) if t == 1.1 else (hold,) if t == pytest.approx(1.66) else ()
+        said = leg.cycle(t, states(t, angles, femur_a=current), steps=steps)
+        follow_goals(angles, said)
+        out.extend(said)
+        t = round(t + DT, 9)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "completed"
+    assert ended.t == pytest.approx(1.76)

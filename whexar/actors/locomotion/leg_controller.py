@@ -40,7 +40,9 @@ current, with a confidence; a sensor set aside or taken back is a
 :class:`ContactDegraded` or :class:`ContactRestored` event), or, for a foot
 searching down, the ground holding it (its goal error grown by
 ``contact.search_stop_m``). Each swing's end is a :class:`SwingEnded`
-(:mod:`.steps`): the typed signal a reflex subscribes to.
+(:mod:`.steps`): the typed signal a reflex subscribes to. A step on the ground
+that comes while a touchdown is awaited (the walk stops, a standing foot
+settles) leaves it to be judged when due; only a new swing judges it at once.
 
 The leg flip (6.8.1): when :class:`BodyMotion` says ``upside_down`` changed,
 the trochanter turns by 180° while the other joints hold: the leg, rotated
@@ -147,6 +149,8 @@ class LegController:
             cfg.contact.model(self.loco.contact_current_a), self.contact_source
         )
         self.touchdown_s = cfg.contact.touchdown_s
+        self.unjudged: Step | None = None
+        """A swing whose touchdown a step on the ground interrupted: judged when due."""
         self.search_stop_m = cfg.contact.search_stop_m
         self.foot_error: float | None = None
         """The foot's distance from its goals' point at the last state (``foot_error_m``)."""
@@ -202,9 +206,16 @@ class LegController:
             origin = list(self.frame.from_leg(fk_point(start, self.geometry)))
         elif cmd.kind in ("stance", "hold") and self.foot is None:
             return  # nothing to hold yet: the first command must place the foot
+        waiting = self.unjudged
+        if waiting is not None and cmd.kind == "swing":  # lifted again: judged now
+            self.unjudged = None
+            self._swing_ended(cmd.start_t, waiting.judged(self.contact), waiting)
         old = self.step
         if old is not None and old.awaiting:  # a new step before its touchdown was judged
-            self._swing_ended(cmd.start_t, old.judged(self.contact), old)
+            if cmd.kind == "swing" or self.contact:
+                self._swing_ended(cmd.start_t, old.judged(self.contact), old)
+            else:  # on the ground still (a stop, a settling move): judged when due
+                self.unjudged = old
         self.step = Step(
             cmd.kind,
             cmd.start_t,
@@ -409,6 +420,12 @@ class LegController:
         if self.phase == "search" and not contact:
             contact = self._stopped_by_ground()
         self.contact = contact
+        waiting = self.unjudged
+        if waiting is not None and (
+            contact or t - (waiting.start_t + waiting.duration) >= waiting.touchdown_s
+        ):
+            self.unjudged = None
+            self._swing_ended(t, waiting.judged(contact), waiting)
         phase, progress = "idle", 0.0
         if self.step is not None and self.foot is not None:
             phase, progress, outcome = advance(
