@@ -225,6 +225,17 @@ class ContactSpec(Section):
     """A searching foot whose distance from its goal's point grew by this much since the
     search began is held by the ground it looks for: found, before the force sensor says
     so where the leg carries little load (the front legs uphill on 30°)."""
+    balance_gain_m_s: float = Field(default=0.0, ge=0.0, le=1e-3, allow_inf_nan=False)
+    """A stance foot whose force sensor reads a count below the loaded feet's mean goes
+    down this fast, m/s (up, above it); 0, the default: the stance does not share its
+    load. 5e-5 took 30°'s searching from 142 to 5 activations per 10 minutes, and tipped
+    the body toward a trench's edge (the thesis's leg-load control, 6.8.1;
+    docs/reflexes.md)."""
+    balance_speed_m_s: float = Field(default=0.02, gt=0.0, le=0.2, allow_inf_nan=False)
+    """… at most this fast."""
+    balance_m: float = Field(default=0.02, ge=0.0, le=0.1, allow_inf_nan=False)
+    """… and no further than this from where its stance began: walking 30° a foot hangs
+    1–1.5 cm above the ground as the body rolls (docs/reflexes.md)."""
     touchdown_s: Positive = 0.25
     """A swing that ended with no contact is judged this long after its end: ``completed``
     if contact came meanwhile, else ``no_contact`` (the FSR's contact lags the swing's end

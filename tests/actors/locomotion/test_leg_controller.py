@@ -14,6 +14,7 @@ from whexar.actors.messages import (
     JointGoal,
     JointGoals,
     JointState,
+    LegLoads,
     LegState,
     ServoStates,
     StepCommand,
@@ -142,9 +143,9 @@ def run(
     return out
 
 
-def placed(contact: str = "current") -> tuple[LegController, list[float]]:
+def placed(contact: str = "current", cfg: RobotConfig = CFG) -> tuple[LegController, list[float]]:
     """RF standing on its neutral point after its first move, from a seated pose."""
-    leg = LegController(CFG, 0, name="leg-RF", contact=contact)  # type: ignore[arg-type]
+    leg = LegController(cfg, 0, name="leg-RF", contact=contact)  # type: ignore[arg-type]
     angles = [0.0, 0.0, 0.6, -1.6, -0.5]
     run(leg, 0.0, 1.06, angles, steps=(step("move", 0.0, 1.0, NEUTRAL),))
     return leg, angles
@@ -501,3 +502,31 @@ def test_a_stop_during_a_touchdown_waits_for_it_before_judging() -> None:
     (ended,) = swing_ends(out)
     assert ended.outcome == "completed"
     assert ended.t == pytest.approx(1.76)
+
+
+def test_a_stance_foot_its_force_sensor_reads_lighter_than_the_others_goes_down() -> None:
+    def loads(t: float, rf: int, rf_on: bool) -> LegLoads:
+        counts = (rf, 500, 500, 500, 500, 500)
+        contacts = (rf_on, True, True, True, True, True)
+        return LegLoads(t=t, source="sensors", seq=None, counts=counts, contacts=contacts)
+
+    # The stance sharing its load (off by default): read through its force sensor, the
+    # foot goes down; read through the current, it holds.
+    gain = 5e-5
+    cfg = RobotConfig.model_validate({"contact": {"balance_gain_m_s": gain}})
+    for source, on, lower in (("fsr", True, True), ("current", True, False)):
+        leg, angles = placed(source, cfg)
+        t, first = 1.1, True
+        while t < 1.6:
+            said = leg.cycle(
+                t,
+                states(t, angles, femur_a=LOADED_A),
+                loads=loads(t, 300, on),  # 200 counts under the loaded feet's mean
+                steps=(step("stance", 1.1, 2.0, NEUTRAL),) if first else (),
+            )
+            follow_goals(angles, said)
+            first, t = False, round(t + DT, 9)
+        assert leg.foot is not None
+        # Down at 5e-5 m/s per count of the 167 under the six feet's mean of 467.
+        expected = NEUTRAL[2] - (gain * 167 * 0.5 if lower else 0.0)
+        assert leg.foot[2] == pytest.approx(expected, abs=0.0008), (source, on)

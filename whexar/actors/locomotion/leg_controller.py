@@ -152,6 +152,11 @@ class LegController:
         self.unjudged: Step | None = None
         """A swing whose touchdown a step on the ground interrupted: judged when due."""
         self.search_stop_m = cfg.contact.search_stop_m
+        self.balance_gain = cfg.contact.balance_gain_m_s
+        self.balance_speed = cfg.contact.balance_speed_m_s
+        self.balance_m = cfg.contact.balance_m
+        self.load_error: float | None = None
+        """Counts this leg's force sensor reads below the loaded feet's mean (None: unknown)."""
         self.foot_error: float | None = None
         """The foot's distance from its goals' point at the last state (``foot_error_m``)."""
         self.search_from: float | None = None
@@ -226,6 +231,9 @@ class LegController:
             shape,
             joint_space,
             touchdown_s=self.touchdown_s,
+            balance_gain=self.balance_gain,
+            balance_speed=self.balance_speed,
+            balance_m=self.balance_m,
             search_depth=cmd.search_depth_m if math.isfinite(cmd.search_depth_m) else 0.0,
             search_speed=self.search_speed,
         )
@@ -250,6 +258,10 @@ class LegController:
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
+            loaded = [c for c, on in zip(loads.counts, loads.contacts, strict=True) if on]
+            self.load_error = (
+                sum(loaded) / len(loaded) - loads.counts[self.leg] if len(loaded) >= 3 else None
+            )
 
     # ----------------------------------------------------------------- contact
 
@@ -428,8 +440,11 @@ class LegController:
             self._swing_ended(t, waiting.judged(contact), waiting)
         phase, progress = "idle", 0.0
         if self.step is not None and self.foot is not None:
+            # The stance shares its load by the force sensors while they are what the
+            # contact estimate reads (fresh and sound).
+            balance = self.load_error if source == "fsr" else None
             phase, progress, outcome = advance(
-                self.step, self.foot, self.twist, t, dt, contact, source
+                self.step, self.foot, self.twist, t, dt, contact, source, balance
             )
             if outcome is not None:
                 self._swing_ended(t, outcome, self.step)

@@ -25,6 +25,16 @@ body carrying the foot as in stance: contact within the depth is a
 ``completed`` swing whose ground lies lower (a negative ground offset), the
 stance going on from there; none is ``no_contact`` at the full depth. A
 contact that never went away after lift-off is not believed (a stuck sensor).
+
+A stance can share the load ("the controller that controlled the leg
+loading", 6.8.1; off by default, ``contact.balance_gain_m_s``): a stance foot
+whose force sensor reads fewer counts than the loaded feet's mean goes down,
+one that reads more goes up, at ``balance_gain`` per count of difference (at
+most ``balance_speed``), by at most ``balance_m`` from where its stance
+began. The loaded feet's moves sum to nothing, so the body keeps its height,
+and the feet do not settle on a diagonal pair as the body rolls on a slope.
+Each stance starts again from the planned height. Measured, with what it
+costs at a trench's edge, in docs/reflexes.md.
 Plain functions over plain data: no time is read, nothing is sent.
 """
 
@@ -64,6 +74,14 @@ class Step:
     """… going down at this speed, m/s."""
     searched: float = 0.0
     """How far it has searched so far, m."""
+    balance_gain: float = 0.0
+    """How fast a stance foot moves per count of load below the loaded feet's mean, m/s."""
+    balance_speed: float = 0.0
+    """… at most, m/s."""
+    balance_m: float = 0.0
+    """… and no further than this from where its stance began, m."""
+    balanced: float = 0.0
+    """How far it has moved so (+ up), m."""
 
     def judged(self, contact: bool) -> SwingOutcome:
         """The outcome of a swing still awaiting its touchdown, judged now."""
@@ -79,12 +97,14 @@ def advance(
     dt: float,
     contact: bool,
     source: str,
+    load_error: float | None = None,
 ) -> tuple[str, float, SwingOutcome | None]:
     """Move ``foot`` (upright frame, in place) along ``step`` to time ``t``; ``dt`` since the
     last cycle, ``twist`` the body's, ``contact`` this cycle's reading from ``source``
-    (``"none"``: the leg senses no contact). Returns the phase (swing, move, stance, hold,
-    ride, search), the progress through the step and, when the swing's outcome is known now,
-    that."""
+    (``"none"``: the leg senses no contact), ``load_error`` how many counts its force
+    sensor reads below the loaded feet's mean (None: not known). Returns the phase (swing,
+    move, stance, hold, ride, search), the progress through the step and, when the swing's
+    outcome is known now, that."""
     u = (t - step.start_t) / step.duration
     u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
     if step.kind == "swing" and not step.ended:
@@ -135,6 +155,12 @@ def advance(
             foot[2] -= down
             step.searched += down
             return "search", u, None
+    elif kind == "stance" and load_error is not None and step.balance_gain > 0.0:
+        v = step.balance_gain * load_error
+        v = max(-step.balance_speed, min(step.balance_speed, v))
+        to = max(-step.balance_m, min(step.balance_m, step.balanced - v * dt))
+        foot[2] += to - step.balanced
+        step.balanced = to
     return kind, u, None
 
 
