@@ -108,6 +108,38 @@ def test_ground_found_a_hole_deep_is_a_moment_of_activity_a_press_is_not() -> No
     assert not s.active
 
 
+def test_in_a_gait_left_out_of_around_gaits_the_walk_goes_on_without_the_foothold() -> None:
+    s = searching(around_gaits=("tripod",))
+    s.react(0.5, locomotion_state(0.5, "walking", gait="ripple"))
+    # No step around (it would halt the walk): the leg tries again at its next swing.
+    out = list(s.react(1.0, ended(1.0, "no_contact")))
+    assert requests(out) == []
+    (said,) = [m for m in out if isinstance(m, NoFoothold)]
+    assert (said.leg, said.attempts) == (1, 0)
+    assert s.active
+    # The leg found ground at its next swing: the reflex is quiet.
+    assert requests(s.react(2.0, ended(2.0, "completed"))) == []
+    assert not s.active
+    # A support lost in stance: the other feet hold the body, nothing is asked.
+    s.react(3.0, state(3.0, "stance", True))
+    lost: list[Command] = []
+    for k in range(60):
+        lost += s.react(3.01 + 0.01 * k, state(3.01 + 0.01 * k, "stance", False))
+    assert requests(lost) == []
+
+
+def test_in_the_tripod_a_foot_with_no_ground_is_stepped_around_then_the_body_held() -> None:
+    s = searching()
+    s.react(0.5, locomotion_state(0.5, "walking", gait="tripod"))
+    out: list[Command] = []
+    for k in range(3):
+        out += s.react(1.0 + k, ended(1.0 + k, "no_contact"))
+    reqs = requests(out)
+    assert [r.restep_leg for r in reqs[:2]] == [1, 1]  # forward, then back
+    assert reqs[2].halt is True
+    assert [m.attempts for m in out if isinstance(m, NoFoothold)] == [2]
+
+
 def test_in_a_gait_on_four_or_five_feet_the_walk_goes_on_without_the_foothold() -> None:
     s = searching()
     s.react(0.5, locomotion_state(0.5, "walking", gait="ripple"))
