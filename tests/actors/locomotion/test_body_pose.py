@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from whexar.actors.locomotion.leg_controller import HALF_TICK_RAD
+from whexar.actors.locomotion.wire_goals import HALF_TICK_RAD
 from whexar.actors.messages import (
     BodyMotion,
     BodyTilt,

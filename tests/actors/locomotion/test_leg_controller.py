@@ -7,7 +7,8 @@ from collections.abc import Callable
 
 import pytest
 
-from whexar.actors.locomotion.leg_controller import HALF_TICK_RAD, LegController
+from whexar.actors.locomotion.leg_controller import LegController
+from whexar.actors.locomotion.wire_goals import HALF_TICK_RAD
 from whexar.actors.messages import (
     BodyMotion,
     IkFailed,

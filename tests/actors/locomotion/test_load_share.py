@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from whexar.actors.locomotion.steps import Step, advance
+from whexar.actors.locomotion.steps import Step, advance, load_error
 from whexar.config import RobotConfig
 
 CFG = RobotConfig().contact
@@ -64,3 +64,10 @@ def test_without_a_load_reading_or_a_gain_the_foot_holds_its_height() -> None:
     step, foot = stance(gain=0.0), [0.2, -0.1, -0.29]
     hold_for(step, foot, 1.0, 500.0)
     assert foot[2] == -0.29
+
+
+def test_the_load_error_is_against_the_loaded_feet_and_needs_three_of_them() -> None:
+    on = (True, True, True, False, False, False)
+    assert load_error((100, 400, 400, 0, 0, 0), on, 0) == pytest.approx(200.0)
+    assert load_error((100, 400, 400, 0, 0, 0), on, 3) == pytest.approx(300.0)
+    assert load_error((100, 400, 0, 0, 0, 0), (True, True) + (False,) * 4, 0) is None

@@ -29,8 +29,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from whexar.actors.locomotion.leg_controller import FLIPPED_TROCHANTER, HALF_TICK_RAD
+from whexar.actors.locomotion.leg_controller import FLIPPED_TROCHANTER
 from whexar.actors.locomotion.planner import CONTACT_GRID_M
+from whexar.actors.locomotion.wire_goals import HALF_TICK_RAD
 from whexar.actors.messages import (
     BodyMotion,
     CommandClamped,

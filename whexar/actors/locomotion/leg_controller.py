@@ -64,13 +64,13 @@ from typing import Final
 
 from whexar.actors.locomotion.frames import LegFrame
 from whexar.actors.locomotion.overrides import Overrides
-from whexar.actors.locomotion.steps import Step, advance
+from whexar.actors.locomotion.steps import Step, advance, load_error
+from whexar.actors.locomotion.wire_goals import WireGoals
 from whexar.actors.messages import (
     BodyMotion,
     ContactDegraded,
     ContactRestored,
     IkFailed,
-    JointGoal,
     JointGoals,
     LegLoads,
     LegState,
@@ -88,14 +88,11 @@ from whexar.runtime.messages import Message
 
 FLIPPED_TROCHANTER: Final = -math.pi
 """Trochanter angle of a flipped leg: Goal Position tick 0, inside the register's turn."""
-HALF_TICK_RAD: Final = math.pi / 4096
-"""Half a Goal Position tick (0.088°): goals closer than this reach the wire unchanged."""
 _POSITIONING: Final = 5
 READ_FRESH_S: Final = 0.1
 """A joint read longer ago (a servo lost) leaves the foot's error unknown: ten cycles."""
 _READ_JOINTS: Final = (0, 2, 3, 4)
 """The joints the foot's error reads (the default plan leaves the trochanter out)."""
-_WHEEL: Final = 6
 
 
 class LegController:
@@ -155,8 +152,7 @@ class LegController:
         self.balance_gain = cfg.contact.balance_gain_m_s
         self.balance_speed = cfg.contact.balance_speed_m_s
         self.balance_m = cfg.contact.balance_m
-        self.load_error: float | None = None
-        """Counts this leg's force sensor reads below the loaded feet's mean (None: unknown)."""
+        self.load_error: float | None = None  # counts under the loaded feet's mean (steps)
         self.foot_error: float | None = None
         """The foot's distance from its goals' point at the last state (``foot_error_m``)."""
         self.search_from: float | None = None
@@ -164,8 +160,8 @@ class LegController:
         self.search_speed = cfg.contact.search_speed_m_s
         self.overrides = Overrides(leg, self.loco.reflex_hold_s, self.loco.reflex_blend_s)
         self.wheel_radius = self.geometry.wheel_radius
-        self.sent: list[float] = [math.inf] * N_JOINTS
-        """The goals last said, per joint (rad, or rad/s for the wheel); inf: none yet."""
+        self.wire = WireGoals(name, leg)
+        self.sent = self.wire.sent  # per joint (rad, or rad/s for the wheel); inf: none yet
         self.steer = False
         self.heading = 0.0
         self.speed = 0.0
@@ -258,10 +254,7 @@ class LegController:
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
-            loaded = [c for c, on in zip(loads.counts, loads.contacts, strict=True) if on]
-            self.load_error = (
-                sum(loaded) / len(loaded) - loads.counts[self.leg] if len(loaded) >= 3 else None
-            )
+            self.load_error = load_error(loads.counts, loads.contacts, self.leg)
 
     # ----------------------------------------------------------------- contact
 
@@ -355,11 +348,8 @@ class LegController:
         return a + (b - a) * min_jerk(u)
 
     def _goals(self, t: float, angles: list[float], airborne: bool) -> JointGoals | None:
-        """This cycle's goals that differ from the ones last said (None: nothing new).
-
-        The bus keeps a joint's goal until a new one comes, and sends a servo its goal
-        again on its own before the Bus Watchdog would expire: an unchanged goal need not
-        travel. A position within half a Goal Position tick of the last is unchanged."""
+        """This cycle's goals that differ from the ones last said (:mod:`.wire_goals`;
+        None: nothing new)."""
         if self.steer and not self.frame.upside_down:
             # direction = s·ψ − coxa (wheels.direction_for_heading, 5.1), within one turn.
             direction = self.side * self.heading - angles[0]
@@ -367,18 +357,8 @@ class LegController:
         else:
             direction = 0.0
         speed = 0.0 if airborne or not self.steer or self.frame.upside_down else self.speed
-        last = self.sent
-        name, leg = self.name, self.leg
-        goals = []
-        for j, angle in enumerate((*angles, direction)):  # the positioning joints, direction
-            if abs(angle - last[j]) >= HALF_TICK_RAD:
-                last[j] = angle
-                goals.append(JointGoal(t=t, source=name, leg=leg, joint=j, position_rad=angle))
-        rate = speed / self.wheel_radius
-        if rate != last[_WHEEL]:
-            last[_WHEEL] = rate
-            goals.append(JointGoal(t=t, source=name, leg=leg, joint=_WHEEL, velocity_rad_s=rate))
-        return JointGoals(t=t, source=name, goals=tuple(goals)) if goals else None
+        # The positioning joints, then the direction; the wheel's velocity.
+        return self.wire.changed(t, enumerate((*angles, direction)), speed / self.wheel_radius)
 
     def take_overrides(self, now: float, overrides: Iterable[JointGoals]) -> JointGoals | None:
         """Override goals that arrive between two cycles, taken at once (the priority
@@ -388,15 +368,8 @@ class LegController:
         self.overrides.take(now, overrides)
         if self.foot is None or self.angles is None:
             return None
-        last, name, leg = self.sent, self.name, self.leg
-        goals = []
-        for joint, (angle, _, _) in sorted(self.overrides.held.items()):
-            if abs(angle - last[joint]) >= HALF_TICK_RAD:
-                last[joint] = angle
-                goals.append(
-                    JointGoal(t=now, source=name, leg=leg, joint=joint, position_rad=angle)
-                )
-        return JointGoals(t=now, source=name, goals=tuple(goals)) if goals else None
+        held = sorted(self.overrides.held.items())
+        return self.wire.changed(now, ((joint, angle) for joint, (angle, _, _) in held))
 
     # ----------------------------------------------------------------- the cycle
 
@@ -440,8 +413,7 @@ class LegController:
             self._swing_ended(t, waiting.judged(contact), waiting)
         phase, progress = "idle", 0.0
         if self.step is not None and self.foot is not None:
-            # The stance shares its load by the force sensors while they are what the
-            # contact estimate reads (fresh and sound).
+            # The stance shares its load while the estimate reads the force sensors.
             balance = self.load_error if source == "fsr" else None
             phase, progress, outcome = advance(
                 self.step, self.foot, self.twist, t, dt, contact, source, balance

@@ -41,6 +41,7 @@ Plain functions over plain data: no time is read, nothing is sent.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from whexar.kinematics.trajectory import SwingOutcome, SwingTable, min_jerk
@@ -162,6 +163,14 @@ def advance(
         foot[2] += to - step.balanced
         step.balanced = to
     return kind, u, None
+
+
+def load_error(counts: Sequence[int], contacts: Sequence[bool], leg: int) -> float | None:
+    """How many counts ``leg``'s force sensor reads below the mean of the loaded feet's
+    (those whose sensor says contact); None with fewer than three loaded: no stance to
+    share."""
+    loaded = [c for c, on in zip(counts, contacts, strict=True) if on]
+    return sum(loaded) / len(loaded) - counts[leg] if len(loaded) >= 3 else None
 
 
 def _adapt(step: Step, u: float, contact: bool) -> SwingOutcome | None:
