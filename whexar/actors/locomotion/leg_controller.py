@@ -254,7 +254,8 @@ class LegController:
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
-            self.load_error = load_error(loads.counts, loads.contacts, self.leg)
+            if self.balance_gain > 0.0:  # the stance shares its load (off by default)
+                self.load_error = load_error(loads.counts, loads.contacts, self.leg)
 
     # ----------------------------------------------------------------- contact
 
@@ -406,9 +407,7 @@ class LegController:
             contact = self._stopped_by_ground()
         self.contact = contact
         waiting = self.unjudged
-        if waiting is not None and (
-            contact or t - (waiting.start_t + waiting.duration) >= waiting.touchdown_s
-        ):
+        if waiting is not None and (contact or waiting.touchdown_due(t)):
             self.unjudged = None
             self._swing_ended(t, waiting.judged(contact), waiting)
         phase, progress = "idle", 0.0

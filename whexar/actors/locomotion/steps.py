@@ -84,6 +84,10 @@ class Step:
     balanced: float = 0.0
     """How far it has moved so (+ up), m."""
 
+    def touchdown_due(self, t: float) -> bool:
+        """A swing that ended with no contact has waited its ``touchdown_s`` by ``t``."""
+        return t - (self.start_t + self.duration) >= self.touchdown_s
+
     def judged(self, contact: bool) -> SwingOutcome:
         """The outcome of a swing still awaiting its touchdown, judged now."""
         self.awaiting = False
@@ -149,7 +153,7 @@ def advance(
     if step.awaiting:
         if contact:
             return kind, u, step.judged(True)
-        if t - (step.start_t + step.duration) >= step.touchdown_s:
+        if step.touchdown_due(t):
             if step.searched >= step.search_depth:
                 return kind, u, step.judged(False)
             down = min(step.search_speed * dt, step.search_depth - step.searched)
