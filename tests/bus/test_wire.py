@@ -360,14 +360,6 @@ def test_a_real_port_reads_as_the_sdk_reads_it(fault: str) -> None:
             return FaultState(corrupt_rate=2e-3, rng=random.Random(5))
         return None
 
-    sdk_out, sdk_tap = _pty_reads(False, faults())
-    native_out, native_tap = _pty_reads(True, faults())
-    assert native_out == sdk_out
-    if fault == "silent":
-        assert {r[:2] for r in sdk_out} == {(dxl.COMM_RX_TIMEOUT, 17)}
-    if fault == "corrupt":
-        assert {r[0] for r in sdk_out} >= {dxl.COMM_SUCCESS, dxl.COMM_RX_CORRUPT}
-
     def seen(tap: list[tuple[str, bytes]]) -> tuple[list[bytes], bytes, int]:
         # Where the goals fall among the statuses is a matter of microseconds: compare
         # what went each way.
@@ -375,6 +367,23 @@ def test_a_real_port_reads_as_the_sdk_reads_it(fault: str) -> None:
         received = b"".join(data for kind, data in tap if kind == "rx")
         return sent, received, sum(kind == "timeout" for kind, _ in tap)
 
+    # On real time, a process stall longer than the packet timeout (a busy CI machine)
+    # times one path out where the other was answered. Such a stall hits one attempt; a
+    # real difference between the paths shows on every attempt, so three are allowed.
+    def expected(out: list[Any]) -> bool:
+        if fault == "silent":
+            return {r[:2] for r in out} == {(dxl.COMM_RX_TIMEOUT, 17)}
+        if fault == "corrupt":
+            return {r[0] for r in out} >= {dxl.COMM_SUCCESS, dxl.COMM_RX_CORRUPT}
+        return True
+
+    for _attempt in range(3):
+        sdk_out, sdk_tap = _pty_reads(False, faults())
+        native_out, native_tap = _pty_reads(True, faults())
+        if native_out == sdk_out and seen(native_tap) == seen(sdk_tap) and expected(sdk_out):
+            break
+    assert native_out == sdk_out
+    assert expected(sdk_out)
     assert seen(native_tap) == seen(sdk_tap)
 
 
