@@ -1,12 +1,13 @@
 """The elevator reflex's policy, called directly: a blocked swing raises the step, up to
-its bound; the raise is withdrawn once no swing has been blocked for its hold; a swing
-that met something light and pushed it (the foot went on) raises nothing."""
+its bound; the raise is withdrawn once no swing has been blocked for its hold and the body
+has walked its distance since; a swing that met something light and pushed it (the foot
+went on) raises nothing."""
 
 from __future__ import annotations
 
 import pytest
 
-from whexar.actors.messages import LegState, ReflexRequest, SwingEnded
+from whexar.actors.messages import LegState, LocomotionState, ReflexRequest, SwingEnded
 from whexar.actors.reactive import check_params
 from whexar.actors.reactive.elevator import Elevator
 from whexar.config import RobotConfig
@@ -41,7 +42,7 @@ def test_other_swing_ends_raise_nothing(outcome: str) -> None:
 
 
 def test_the_raise_is_withdrawn_after_the_hold_without_a_block() -> None:
-    e = elevator(hold_s=3.0, confirm_s=0.0)
+    e = elevator(hold_s=3.0, hold_m=0.0, confirm_s=0.0)
     e.react(1.0, ended(1.0, "blocked"))
     assert raises(e.tick(3.9)) == []
     e.react(2.0, ended(2.0, "blocked"))  # a new block: the hold starts again
@@ -49,6 +50,42 @@ def test_the_raise_is_withdrawn_after_the_hold_without_a_block() -> None:
     assert raises(e.tick(5.0)) == [0.0]
     assert not e.active
     assert raises(e.tick(6.0)) == []
+
+
+def locomotion(t: float, activity: str = "walking", vx: float = 0.1) -> LocomotionState:
+    return LocomotionState(
+        t=t,
+        source="coordinator",
+        activity=activity,
+        mode="walk",
+        gait="tetrapod",
+        stance="default",
+        twist=(vx, 0.0, 0.0),
+        gait_phase=0.0,
+        swing_legs=(),
+        margin_m=0.1,
+        upside_down=False,
+    )
+
+
+def walk(e: Elevator, t0: float, t1: float, activity: str = "walking") -> list[float | None]:
+    """The coordinator's state every 10 ms from ``t0`` to ``t1``, then a tick: what is asked."""
+    for k in range(round((t1 - t0) / 0.01) + 1):
+        e.react(t0 + 0.01 * k, locomotion(t0 + 0.01 * k, activity))
+    return raises(e.tick(t1))
+
+
+def test_the_raise_is_kept_until_the_body_has_walked_past_what_blocked() -> None:
+    """A front foot's block is the rear feet's 0.67 m later: time alone does not say
+    they are past it when the walk halts (a step around, a measurement) or is slow."""
+    e = elevator(hold_s=1.0, hold_m=0.8, confirm_s=0.0)
+    e.react(1.0, ended(1.0, "blocked"))
+    assert walk(e, 1.0, 5.0, activity="standing") == []  # held still: 0 m walked
+    assert walk(e, 5.0, 12.9) == []  # 0.79 m at 0.1 m/s
+    e.react(13.0, ended(13.0, "blocked", leg=4))  # a rear leg meets it: counted afresh
+    assert walk(e, 13.0, 20.9) == []
+    assert walk(e, 20.9, 21.1) == [0.0]
+    assert not e.active
 
 
 def leg(t: float, error_m: float | None, leg: int = 0) -> LegState:

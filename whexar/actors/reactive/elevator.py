@@ -10,8 +10,12 @@ the way up, before the apex — something in the swing's path. Each blocked
 swing raises every leg's step by ``raise_m`` more, up to ``max_raise_m``
 above what the operator asked (a :class:`ReflexRequest` ``step_raise_m``; the
 coordinator keeps it within ``locomotion.max_step_height_mm``), so the next
-swings go over. Once no swing has been blocked for ``hold_s`` the raise is
-withdrawn: the operator's step again.
+swings go over. Once no swing has been blocked for ``hold_s``, and the body
+has walked ``hold_m`` since (the coordinator's commanded twist, integrated
+while it walks), the raise is withdrawn: the operator's step again. The
+distance is what lets every leg over: the rear feet meet a sill the front ones
+met only after the body has walked the span between them, however long halts
+and slower gaits make that take.
 
 **Pushed, not blocked.** The thesis's elevator did not fire on a light obstacle
 the leg simply pushed away (6.7.2). A blocked swing is confirmed by the foot held
@@ -24,11 +28,12 @@ taken as blocked.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 
 from pydantic import Field
 
-from whexar.actors.messages import LegState, SwingEnded
+from whexar.actors.messages import LegState, LocomotionState, SwingEnded
 from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
 from whexar.config import RobotConfig
 from whexar.runtime.messages import Message
@@ -43,7 +48,11 @@ class ElevatorParams(ReflexParams):
     """The most it raises the step above the operator's, m (the default step doubled)."""
     hold_s: float = Field(4.8, gt=0.0, le=60.0)
     """The raise is kept this long after the last blocked swing, s (three tripod cycles
-    of 1.6 s: every leg has stepped over what blocked one)."""
+    of 1.6 s)."""
+    hold_m: float = Field(0.8, ge=0.0, le=5.0)
+    """… and until the body has walked this far since the last blocked swing, m: the
+    0.67 m from the front feet to the rear ones at the default stance, and a stride, so
+    that the rear legs too have stepped over what blocked a front one (docs/reflexes.md)."""
     held_m: float = Field(0.034, gt=0.0, le=0.2)
     """A foot error this large within ``confirm_s`` of the contact confirms a blocked
     swing, m: between the 27 mm of a foot pushing a 0.3 kg sill and the 42 mm of one held
@@ -56,7 +65,7 @@ class ElevatorParams(ReflexParams):
 class Elevator(Reflex):
     """Raises the step after a blocked swing (module docstring)."""
 
-    inputs = ("swings", "legs")
+    inputs = ("swings", "legs", "locomotion")
     priority = 20
     tick_s = 0.1
     Params = ElevatorParams
@@ -70,8 +79,15 @@ class Elevator(Reflex):
         """leg → (when its swing met something, whether its foot error was read since)."""
         self.pushed = 0
         """Blocked swings let be: the foot went on (a light obstacle pushed)."""
+        self.walked = 0.0
+        """How far the body has walked since the last blocked swing, m."""
+        self.walk_t: float | None = None
+        """When the coordinator last said it walks."""
 
     def react(self, t: float, msg: Message) -> Iterable[Command]:
+        if isinstance(msg, LocomotionState):
+            self._walk(t, msg)
+            return ()
         if isinstance(msg, LegState):
             return self._watch(t, msg) if msg.leg in self.pending else ()
         if not isinstance(msg, SwingEnded) or msg.outcome != "blocked":
@@ -97,9 +113,18 @@ class Elevator(Reflex):
         self.pushed += 1
         return ()
 
+    def _walk(self, t: float, s: LocomotionState) -> None:
+        if s.activity not in ("walking", "hybrid"):
+            self.walk_t = None
+            return
+        if self.walk_t is not None:
+            self.walked += math.hypot(s.twist[0], s.twist[1]) * (t - self.walk_t)
+        self.walk_t = t
+
     def _blocked(self, t: float, leg: int) -> Iterable[Command]:
         p = self.params
         self.last_blocked = t
+        self.walked = 0.0
         before = self.raised
         self.raised = min(self.raised + p.raise_m, p.max_raise_m)
         self.active = True
@@ -109,7 +134,8 @@ class Elevator(Reflex):
         return (self.request(t, step_raise_m=self.raised, reason=self.reason),)
 
     def tick(self, t: float) -> Iterable[Command]:
-        if self.raised == 0.0 or t - self.last_blocked < self.params.hold_s:
+        p = self.params
+        if self.raised == 0.0 or t - self.last_blocked < p.hold_s or self.walked < p.hold_m:
             return ()
         self.raised = 0.0
         self.active = False
