@@ -505,6 +505,34 @@ def test_a_stop_during_a_touchdown_waits_for_it_before_judging() -> None:
     assert ended.t == pytest.approx(1.76)
 
 
+def test_a_settling_move_during_a_search_lets_the_search_go_on() -> None:
+    leg, angles = placed()
+    # A hole 3 cm deep under the target; 0.2 s into the search (1 cm down) the walk is
+    # held and the planner settles the foot where it is (a move on the ground).
+    ground = NEUTRAL[2] - 0.03
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, search_depth_m=0.06)
+    out: list[Message] = []
+    t, settle_t = 1.1, 1.6 + CFG.contact.touchdown_s + 0.2
+    while t < 3.0:
+        assert leg.foot is not None
+        current = LOADED_A if t > 1.15 and leg.foot[2] <= ground + 1e-9 else 0.0
+        steps: tuple[StepCommand, ...] = (cmd,) if t == 1.1 else ()
+        if settle_t <= t:
+            settle_t = math.inf
+            assert leg.foot[2] == pytest.approx(NEUTRAL[2] - 0.01, abs=0.002)
+            steps = (step("move", t, 0.2, (leg.foot[0], leg.foot[1], leg.foot[2])),)
+        said = leg.cycle(t, states(t, angles, femur_a=current), steps=steps)
+        follow_goals(angles, said)
+        out.extend(said)
+        t = round(t + DT, 9)
+    (ended,) = swing_ends(out)
+    # Found, not cut short at 1 cm: judged against the swing's ground, the stance there.
+    assert ended.outcome == "completed"
+    assert ended.ground_offset_m == pytest.approx(-0.03, abs=0.002)
+    assert leg.foot is not None
+    assert leg.foot[2] == pytest.approx(ground, abs=0.002)
+
+
 def test_a_stance_foot_its_force_sensor_reads_lighter_than_the_others_goes_down() -> None:
     def loads(t: float, rf: int, rf_on: bool) -> LegLoads:
         counts = (rf, 500, 500, 500, 500, 500)

@@ -40,9 +40,10 @@ current, with a confidence; a sensor set aside or taken back is a
 :class:`ContactDegraded` or :class:`ContactRestored` event), or, for a foot
 searching down, the ground holding it (its goal error grown by
 ``contact.search_stop_m``). Each swing's end is a :class:`SwingEnded`
-(:mod:`.steps`): the typed signal a reflex subscribes to. A step on the ground
-that comes while a touchdown is awaited (the walk stops, a standing foot
-settles) leaves it to be judged when due; only a new swing judges it at once.
+(:mod:`.steps`): the typed signal a reflex subscribes to. A settling move that
+comes while a foot searches carries the search on; another step on the ground
+(the walk stops) leaves an awaited touchdown to be judged when due; only a new
+swing judges it at once.
 
 The leg flip (6.8.1): when :class:`BodyMotion` says ``upside_down`` changed,
 the trochanter turns by 180° while the other joints hold: the leg, rotated
@@ -64,7 +65,14 @@ from typing import Final
 
 from whexar.actors.locomotion.frames import LegFrame
 from whexar.actors.locomotion.overrides import Overrides
-from whexar.actors.locomotion.steps import Step, advance, load_error
+from whexar.actors.locomotion.steps import (
+    Step,
+    StepSpec,
+    advance,
+    begin,
+    interrupted,
+    load_error,
+)
 from whexar.actors.locomotion.wire_goals import WireGoals
 from whexar.actors.messages import (
     BodyMotion,
@@ -145,19 +153,15 @@ class LegController:
         self.estimator = ContactEstimator(
             cfg.contact.model(self.loco.contact_current_a), self.contact_source
         )
-        self.touchdown_s = cfg.contact.touchdown_s
+        self.spec = StepSpec.of(cfg.contact)
         self.unjudged: Step | None = None
         """A swing whose touchdown a step on the ground interrupted: judged when due."""
         self.search_stop_m = cfg.contact.search_stop_m
-        self.balance_gain = cfg.contact.balance_gain_m_s
-        self.balance_speed = cfg.contact.balance_speed_m_s
-        self.balance_m = cfg.contact.balance_m
         self.load_error: float | None = None  # counts under the loaded feet's mean (steps)
         self.foot_error: float | None = None
         """The foot's distance from its goals' point at the last state (``foot_error_m``)."""
         self.search_from: float | None = None
         """The foot error when the present search began."""
-        self.search_speed = cfg.contact.search_speed_m_s
         self.overrides = Overrides(leg, self.loco.reflex_hold_s, self.loco.reflex_blend_s)
         self.wheel_radius = self.geometry.wheel_radius
         self.wire = WireGoals(name, leg)
@@ -211,28 +215,16 @@ class LegController:
         if waiting is not None and cmd.kind == "swing":  # lifted again: judged now
             self.unjudged = None
             self._swing_ended(cmd.start_t, waiting.judged(self.contact), waiting)
-        old = self.step
+        old, what = self.step, None
         if old is not None and old.awaiting:  # a new step before its touchdown was judged
-            if cmd.kind == "swing" or self.contact:
+            what = interrupted(old, cmd, self.contact)
+            if what == "judge":
                 self._swing_ended(cmd.start_t, old.judged(self.contact), old)
-            else:  # on the ground still (a stop, a settling move): judged when due
+            elif what == "wait":
                 self.unjudged = old
-        self.step = Step(
-            cmd.kind,
-            cmd.start_t,
-            max(cmd.duration_s, 1e-6),
-            origin,
-            cmd.target,
-            cmd.height_m,
-            shape,
-            joint_space,
-            touchdown_s=self.touchdown_s,
-            balance_gain=self.balance_gain,
-            balance_speed=self.balance_speed,
-            balance_m=self.balance_m,
-            search_depth=cmd.search_depth_m if math.isfinite(cmd.search_depth_m) else 0.0,
-            search_speed=self.search_speed,
-        )
+        self.step = begin(cmd, origin, shape, joint_space, self.spec)
+        if old is not None and what == "carry":
+            self.step.carry_search(old)
         if self.foot is None:
             self.foot = list(origin)
 
@@ -254,7 +246,7 @@ class LegController:
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
-            if self.balance_gain > 0.0:  # the stance shares its load (off by default)
+            if self.spec.balance_gain > 0.0:  # the stance shares its load (off by default)
                 self.load_error = load_error(loads.counts, loads.contacts, self.leg)
 
     # ----------------------------------------------------------------- contact
@@ -298,7 +290,8 @@ class LegController:
                 source=self.name,
                 leg=self.leg,
                 outcome=outcome,
-                ground_offset_m=self.foot[2] - step.target[2],
+                ground_offset_m=self.foot[2]
+                - (step.target[2] if step.ground_z is None else step.ground_z),
                 confidence=self.confidence,
             )
         )

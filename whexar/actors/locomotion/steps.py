@@ -25,6 +25,10 @@ body carrying the foot as in stance: contact within the depth is a
 ``completed`` swing whose ground lies lower (a negative ground offset), the
 stance going on from there; none is ``no_contact`` at the full depth. A
 contact that never went away after lift-off is not believed (a stuck sensor).
+The leg asks :func:`interrupted` what a new step does to a touchdown still
+awaited: a new swing judges it at once, a settling move on the ground carries
+its search on (not cut short), and another step on the ground leaves it to be
+judged when due.
 
 A stance can share the load ("the controller that controlled the leg
 loading", 6.8.1; off by default, ``contact.balance_gain_m_s``): a stance foot
@@ -43,8 +47,34 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
 
 from whexar.kinematics.trajectory import SwingOutcome, SwingTable, min_jerk
+
+if TYPE_CHECKING:
+    from whexar.actors.messages import StepCommand
+    from whexar.config.motion import ContactSpec
+
+
+@dataclass(frozen=True, slots=True)
+class StepSpec:
+    """What each step of a leg takes from the configuration (``[contact]``)."""
+
+    touchdown_s: float
+    search_speed: float
+    balance_gain: float
+    balance_speed: float
+    balance_m: float
+
+    @classmethod
+    def of(cls, contact: ContactSpec) -> StepSpec:
+        return cls(
+            contact.touchdown_s,
+            contact.search_speed_m_s,
+            contact.balance_gain_m_s,
+            contact.balance_speed_m_s,
+            contact.balance_m,
+        )
 
 
 @dataclass(slots=True)
@@ -75,6 +105,9 @@ class Step:
     """… going down at this speed, m/s."""
     searched: float = 0.0
     """How far it has searched so far, m."""
+    ground_z: float | None = None
+    """Where the ground was expected, for a search this step carries on from an
+    interrupted swing's (None: at its own target)."""
     balance_gain: float = 0.0
     """How fast a stance foot moves per count of load below the loaded feet's mean, m/s."""
     balance_speed: float = 0.0
@@ -88,10 +121,60 @@ class Step:
         """A swing that ended with no contact has waited its ``touchdown_s`` by ``t``."""
         return t - (self.start_t + self.duration) >= self.touchdown_s
 
+    def carry_search(self, swing: Step) -> None:
+        """Go on with ``swing``'s wait for its touchdown, and its search, from this step
+        on the ground (a settling move made while the walk is held): the search is not
+        cut short, and its outcome is judged against the swing's ground."""
+        self.awaiting = True
+        due = swing.start_t + swing.duration + swing.touchdown_s
+        self.touchdown_s = max(0.0, due - (self.start_t + self.duration))
+        self.search_depth, self.search_speed = swing.search_depth, swing.search_speed
+        self.searched = swing.searched
+        self.ground_z = swing.target[2] if swing.ground_z is None else swing.ground_z
+
     def judged(self, contact: bool) -> SwingOutcome:
         """The outcome of a swing still awaiting its touchdown, judged now."""
         self.awaiting = False
         return "completed" if contact else "no_contact"
+
+
+def begin(
+    cmd: StepCommand,
+    origin: list[float],
+    shape: SwingTable | None,
+    joint_space: tuple[list[float], list[float]] | None,
+    spec: StepSpec,
+) -> Step:
+    """The step a leg takes up for ``cmd``, its foot at ``origin``."""
+    depth = cmd.search_depth_m
+    return Step(
+        cmd.kind,
+        cmd.start_t,
+        max(cmd.duration_s, 1e-6),
+        origin,
+        cmd.target,
+        cmd.height_m,
+        shape,
+        joint_space,
+        touchdown_s=spec.touchdown_s,
+        balance_gain=spec.balance_gain,
+        balance_speed=spec.balance_speed,
+        balance_m=spec.balance_m,
+        search_depth=depth if math.isfinite(depth) else 0.0,
+        search_speed=spec.search_speed,
+    )
+
+
+def interrupted(old: Step, cmd: StepCommand, contact: bool) -> Literal["judge", "carry", "wait"]:
+    """What ``cmd`` does to ``old``, a swing still awaiting its touchdown: a new swing, or a
+    contact, has it judged now; a settling move on the ground (the walk held) carries its
+    search on, not cut short; any other step on the ground (a stop, a lifted move) leaves
+    it to be judged when due."""
+    if cmd.kind == "swing" or contact:
+        return "judge"
+    if cmd.kind == "move" and cmd.height_m <= 0.0 and old.search_depth > 0.0:
+        return "carry"
+    return "wait"
 
 
 def advance(
