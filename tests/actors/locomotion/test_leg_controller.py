@@ -248,22 +248,37 @@ def test_a_swing_without_ground_ends_with_no_contact_once_touchdown_has_passed()
     assert len(after) >= 13
 
 
+def cycles(
+    leg: LegController,
+    angles: list[float],
+    until: float,
+    steps: Callable[[float], tuple[StepCommand, ...]],
+    amps: Callable[[float], float],
+) -> list[Message]:
+    """Cycles from 1.1 s to ``until``, the servos following their goals: ``steps(t)`` the
+    steps arriving at ``t``, ``amps(t)`` the femur's current then."""
+    out: list[Message] = []
+    t = 1.1
+    while t < until:
+        said = leg.cycle(t, states(t, angles, femur_a=amps(t)), steps=steps(t))
+        follow_goals(angles, said)
+        out.extend(said)
+        t = round(t + DT, 9)
+    return out
+
+
 def searching_swing(
     leg: LegController, angles: list[float], ground_z: float, until: float
 ) -> list[Message]:
     """A 0.5 s swing from 1.1 s that searches 6 cm down, the servos following their goals;
     the femur feels the ground once the foot is at ``ground_z`` or below."""
     cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, search_depth_m=0.06)
-    out: list[Message] = []
-    t = 1.1
-    while t < until:
+
+    def amps(t: float) -> float:
         assert leg.foot is not None
-        current = LOADED_A if t > 1.15 and leg.foot[2] <= ground_z + 1e-9 else 0.0
-        said = leg.cycle(t, states(t, angles, femur_a=current), steps=(cmd,) if t == 1.1 else ())
-        follow_goals(angles, said)
-        out.extend(said)
-        t = round(t + DT, 9)
-    return out
+        return LOADED_A if t > 1.15 and leg.foot[2] <= ground_z + 1e-9 else 0.0
+
+    return cycles(leg, angles, until, lambda t: (cmd,) if t == 1.1 else (), amps)
 
 
 def test_a_searching_foot_the_ground_holds_has_found_it() -> None:
@@ -491,15 +506,13 @@ def test_a_stop_during_a_touchdown_waits_for_it_before_judging() -> None:
     # the sensor feels the ground at 1.75 s (its lag): completed, not a foot left hanging.
     cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
     hold = step("hold", 1.65, 0.2, swing_target())
-    out: list[Message] = []
-    t = 1.1
-    while t < 2.2:
-        current = LOADED_A if t >= 1.75 else 0.0
-        steps = (cmd,) if t == 1.1 else (hold,) if t == pytest.approx(1.66) else ()
-        said = leg.cycle(t, states(t, angles, femur_a=current), steps=steps)
-        follow_goals(angles, said)
-        out.extend(said)
-        t = round(t + DT, 9)
+    out = cycles(
+        leg,
+        angles,
+        2.2,
+        lambda t: (cmd,) if t == 1.1 else (hold,) if t == pytest.approx(1.66) else (),
+        lambda t: LOADED_A if t >= 1.75 else 0.0,
+    )
     (ended,) = swing_ends(out)
     assert ended.outcome == "completed"
     assert ended.t == pytest.approx(1.76)
@@ -511,21 +524,23 @@ def test_a_settling_move_during_a_search_lets_the_search_go_on() -> None:
     # held and the planner settles the foot where it is (a move on the ground).
     ground = NEUTRAL[2] - 0.03
     cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, search_depth_m=0.06)
-    out: list[Message] = []
-    t, settle_t = 1.1, 1.6 + CFG.contact.touchdown_s + 0.2
-    while t < 3.0:
+    settle = [1.6 + CFG.contact.touchdown_s + 0.2]
+
+    def steps(t: float) -> tuple[StepCommand, ...]:
         assert leg.foot is not None
-        current = LOADED_A if t > 1.15 and leg.foot[2] <= ground + 1e-9 else 0.0
-        steps: tuple[StepCommand, ...] = (cmd,) if t == 1.1 else ()
-        if settle_t <= t:
-            settle_t = math.inf
-            assert leg.foot[2] == pytest.approx(NEUTRAL[2] - 0.01, abs=0.002)
-            steps = (step("move", t, 0.2, (leg.foot[0], leg.foot[1], leg.foot[2])),)
-        said = leg.cycle(t, states(t, angles, femur_a=current), steps=steps)
-        follow_goals(angles, said)
-        out.extend(said)
-        t = round(t + DT, 9)
-    (ended,) = swing_ends(out)
+        if t == 1.1:
+            return (cmd,)
+        if t < settle[0]:
+            return ()
+        settle[0] = math.inf
+        assert leg.foot[2] == pytest.approx(NEUTRAL[2] - 0.01, abs=0.002)
+        return (step("move", t, 0.2, (leg.foot[0], leg.foot[1], leg.foot[2])),)
+
+    def amps(t: float) -> float:
+        assert leg.foot is not None
+        return LOADED_A if t > 1.15 and leg.foot[2] <= ground + 1e-9 else 0.0
+
+    (ended,) = swing_ends(cycles(leg, angles, 3.0, steps, amps))
     # Found, not cut short at 1 cm: judged against the swing's ground, the stance there.
     assert ended.outcome == "completed"
     assert ended.ground_offset_m == pytest.approx(-0.03, abs=0.002)

@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import pytest
 
-from whexar.actors.messages import LegState, LocomotionState, ReflexRequest, SwingEnded
+from whexar.actors.messages import LegState, ReflexRequest, SwingEnded
 from whexar.actors.reactive import check_params
 from whexar.actors.reactive.elevator import Elevator
 from whexar.config import RobotConfig
+from whexar.testing.reflexes import locomotion_state
 
 
 def elevator(**params: object) -> Elevator:
@@ -52,26 +53,11 @@ def test_the_raise_is_withdrawn_after_the_hold_without_a_block() -> None:
     assert raises(e.tick(6.0)) == []
 
 
-def locomotion(t: float, activity: str = "walking", vx: float = 0.1) -> LocomotionState:
-    return LocomotionState(
-        t=t,
-        source="coordinator",
-        activity=activity,
-        mode="walk",
-        gait="tetrapod",
-        stance="default",
-        twist=(vx, 0.0, 0.0),
-        gait_phase=0.0,
-        swing_legs=(),
-        margin_m=0.1,
-        upside_down=False,
-    )
-
-
 def walk(e: Elevator, t0: float, t1: float, activity: str = "walking") -> list[float | None]:
     """The coordinator's state every 10 ms from ``t0`` to ``t1``, then a tick: what is asked."""
     for k in range(round((t1 - t0) / 0.01) + 1):
-        e.react(t0 + 0.01 * k, locomotion(t0 + 0.01 * k, activity))
+        t = t0 + 0.01 * k
+        e.react(t, locomotion_state(t, activity, twist=(0.1, 0.0, 0.0), gait="tetrapod"))
     return raises(e.tick(t1))
 
 
