@@ -229,8 +229,8 @@ class ContactSpec(Section):
     """A stance foot whose force sensor reads a count below the loaded feet's mean goes
     down this fast, m/s (up, above it); 0, the default: the stance does not share its
     load. 5e-5 took 30°'s searching from 142 to 5 activations per 10 minutes, and tipped
-    the body toward a trench's edge (the thesis's leg-load control, 6.8.1;
-    docs/reflexes.md)."""
+    the body toward a trench's edge; with the elevator's distance hold, 30° fares worse
+    with it (the thesis's leg-load control, 6.8.1; docs/reflexes.md)."""
     balance_speed_m_s: float = Field(default=0.02, gt=0.0, le=0.2, allow_inf_nan=False)
     """… at most this fast."""
     balance_m: float = Field(default=0.02, ge=0.0, le=0.1, allow_inf_nan=False)

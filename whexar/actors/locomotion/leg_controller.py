@@ -290,8 +290,7 @@ class LegController:
                 source=self.name,
                 leg=self.leg,
                 outcome=outcome,
-                ground_offset_m=self.foot[2]
-                - (step.target[2] if step.ground_z is None else step.ground_z),
+                ground_offset_m=self.foot[2] - step.ground(),
                 confidence=self.confidence,
             )
         )

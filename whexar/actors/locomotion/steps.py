@@ -117,6 +117,10 @@ class Step:
     balanced: float = 0.0
     """How far it has moved so (+ up), m."""
 
+    def ground(self) -> float:
+        """Where its swing expected the ground (upright frame, m)."""
+        return self.target[2] if self.ground_z is None else self.ground_z
+
     def touchdown_due(self, t: float) -> bool:
         """A swing that ended with no contact has waited its ``touchdown_s`` by ``t``."""
         return t - (self.start_t + self.duration) >= self.touchdown_s
@@ -130,7 +134,7 @@ class Step:
         self.touchdown_s = max(0.0, due - (self.start_t + self.duration))
         self.search_depth, self.search_speed = swing.search_depth, swing.search_speed
         self.searched = swing.searched
-        self.ground_z = swing.target[2] if swing.ground_z is None else swing.ground_z
+        self.ground_z = swing.ground()
 
     def judged(self, contact: bool) -> SwingOutcome:
         """The outcome of a swing still awaiting its touchdown, judged now."""

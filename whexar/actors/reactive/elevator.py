@@ -34,7 +34,7 @@ from collections.abc import Iterable
 from pydantic import Field
 
 from whexar.actors.messages import LegState, LocomotionState, SwingEnded
-from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
+from whexar.actors.reactive.reflex import WALKING, Command, Reflex, ReflexParams
 from whexar.config import RobotConfig
 from whexar.runtime.messages import Message
 
@@ -114,7 +114,7 @@ class Elevator(Reflex):
         return ()
 
     def _walk(self, t: float, s: LocomotionState) -> None:
-        if s.activity not in ("walking", "hybrid"):
+        if s.activity not in WALKING:
             self.walk_t = None
             return
         if self.walk_t is not None:

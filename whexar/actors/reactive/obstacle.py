@@ -71,12 +71,11 @@ import numpy as np
 from pydantic import Field
 
 from whexar.actors.messages import BodyMotion, LegState, LocomotionState, ObstacleRanges
-from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
+from whexar.actors.reactive.reflex import WALKING, Command, Reflex, ReflexParams
 from whexar.config import RobotConfig, StanceSpec
 from whexar.kinematics.leg import fk_chain
 from whexar.runtime.messages import Message
 
-FORWARD = frozenset({"walking", "hybrid"})
 STILL = frozenset({"standing"})
 """The activity in which the rangefinders learn their scale: standing still (seated, the
 rays meet the floor 0.23 m ahead, where the sensor's output folds back, 5.3.5)."""
@@ -361,7 +360,7 @@ class ObstacleReflex(Reflex):
             self.odometer += s.twist[0] * max(0.0, t - self.state_t)
         self.state, self.state_t = s, t
         still = all(abs(v) <= STILL_M_S for v in s.twist)
-        if self.phase == "stopping" and s.activity not in FORWARD and still:
+        if self.phase == "stopping" and s.activity not in WALKING and still:
             return self._start_sweep(t)
         if self.phase == "climbing" and self.odometer >= self.climb_until:
             self.phase, self.active = "watching", False
@@ -379,7 +378,7 @@ class ObstacleReflex(Reflex):
         points = [p for p in each if p is not None]
         s = self.state
         if self.phase == "watching":
-            forward = s is not None and s.activity in FORWARD and s.twist[0] > STILL_M_S
+            forward = s is not None and s.activity in WALKING and s.twist[0] > STILL_M_S
             for i, p in enumerate(each):
                 risen = p is not None and self._risen([p])
                 self.frames[i] = self.frames[i] + 1 if risen else 0

@@ -59,6 +59,8 @@ from whexar.errors import MISSING, Problem
 from whexar.runtime.messages import Event, Message
 
 ENTRY_POINTS: Final = "whexar.reflexes"
+WALKING: Final = frozenset({"walking", "hybrid"})
+"""The coordinator's activities (:class:`LocomotionState`) in which the robot walks on."""
 """The entry-point group a reflex package registers its reflexes in (name → class)."""
 
 STREAMS: Final[Mapping[str, tuple[type[Message], str]]] = {

@@ -73,9 +73,8 @@ class SearchingParams(ReflexParams):
     """The gaits in which a foot that found no ground, or lost it in stance, is stepped
     again; in the others four or five feet hold the body ("for more stable gaits, the
     robot compensated the loss of support of one leg", 6.7.3) and the leg tries again at
-    its next swing. Only the tripod's, with the stance sharing its load: the tetrapod
-    passed the sill in 4 of 5 seeds instead of 1; without it, stepping fired 104 times
-    per 10 minutes on 30° instead of 7 (docs/reflexes.md)."""
+    its next swing. The tripod's alone passed the ripple over the 5 cm trench 5 times of 5
+    instead of 0, and raised 30°'s false triggers (docs/reflexes.md, "searching")."""
     confidence: float = Field(0.5, gt=0.0, lt=1.0)
     """A loss counts when the leg's contact estimate believes it at least this much."""
     found_m: float = Field(0.01, gt=0.0, le=0.1)

@@ -50,6 +50,7 @@ from whexar.actors.messages import (
     SwingEnded,
     TerrainEstimate,
 )
+from whexar.actors.reactive.reflex import WALKING
 from whexar.config import RobotConfig
 from whexar.kinematics.contact import StanceLoss
 from whexar.robot import N_LEGS
@@ -99,7 +100,7 @@ class TerrainEstimator:
     def locomotion(self, msg: LocomotionState) -> None:
         """The coordinator's state: the gait cycle the window follows, and whether the
         body goes anywhere."""
-        self.cycle_s = msg.cycle_s if msg.activity in ("walking", "hybrid") else 0.0
+        self.cycle_s = msg.cycle_s if msg.activity in WALKING else 0.0
         self.still = msg.activity not in ("walking", "riding", "hybrid")
 
     def swing(self, msg: SwingEnded) -> None:
