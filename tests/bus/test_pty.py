@@ -92,13 +92,26 @@ def test_realtime_sync_read_takes_its_modelled_bus_time(port_of: list[dxl.PortHa
         servo_chain(CFG, return_delay_us=CFG.bus.return_delay_time_us), realtime=True
     ) as emulator:
         port = _open(emulator.path, port_of)
-        # Present Current … Present Position (126–135): 42 × 10 bytes.
+        # Present Current … Present Position (126–135): 42 × 10 bytes. The SDK
+        # gives a sync read 8.8 + 34 ms; a process stall on a busy machine can
+        # outlast that and time the read out, as it would on the robot. A stall
+        # only slows a read, so the fastest of the reads that came back is the
+        # bus time; a path that is always too slow fails every attempt.
         walls = []
-        for _ in range(3):
+        results = []
+        for _ in range(8):
             start = monotonic()
             result, _group = _sync_read(port, 126, 10)
-            walls.append(monotonic() - start)
-            assert result == dxl.COMM_SUCCESS
+            results.append(result)
+            if result == dxl.COMM_SUCCESS:
+                walls.append(monotonic() - start)
+                if len(walls) == 3:
+                    break
+            else:
+                # Let the late status packets land before the next request
+                # clears the port.
+                wait_until(monotonic() + 0.1)
+        assert walls, results
         transaction = emulator.last_transaction
         assert transaction is not None
         cost = transaction.cost_s
@@ -123,8 +136,9 @@ def test_a_sync_write_occupies_the_bus(port_of: list[dxl.PortHandler]) -> None:
         start = monotonic()
         assert writer.txPacket() == dxl.COMM_SUCCESS
         write_cost = (14 + 42 * 5) * 10e-6
-        _, result, _ = handler.ping(port, 1)
-        assert result == dxl.COMM_SUCCESS
+        # A ping waits 34 ms for its reply; a stall may outlast it (see above).
+        results = [handler.ping(port, 1)[1] for _ in range(3)]
+        assert dxl.COMM_SUCCESS in results, results
         ping_cost = emulator.last_transaction.cost_s if emulator.last_transaction else 0.0
         assert monotonic() - start >= 0.9 * (write_cost + ping_cost)
 
