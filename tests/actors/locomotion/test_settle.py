@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from tests.actors.locomotion.test_planner import PerfectLegs, drive, standing
+from tests.actors.locomotion.test_planner import PerfectLegs, activities, cmd, drive, standing
 from whexar.actors.locomotion.settle import SETTLE_MIN_M, settled
 from whexar.actors.messages import LegState, StepCommand
 
@@ -88,3 +88,38 @@ def test_with_settling_off_the_goals_hold() -> None:
     dragged.steps, dragged.feet = legs.steps, legs.feet
     said = drive(planner, dragged, 3.0, 4.0)
     assert not [m for m in said if isinstance(m, StepCommand) and m.kind == "move"]
+
+
+class _PushedLegs(PerfectLegs):
+    """Perfect legs whose servos measure each foot pushed a few millimetres sideways of
+    its goal, the left and right legs apart: the settle always has a move to make."""
+
+    def states(self, t: float, cycle: int) -> list[LegState]:
+        out = super().states(t, cycle)
+        return [
+            dataclasses.replace(
+                s,
+                measured_foot=(s.foot[0], s.foot[1] + (0.006 if s.leg % 2 else -0.006), s.foot[2]),
+            )
+            for s in out
+        ]
+
+
+def test_a_gait_starts_though_the_standing_feet_settle() -> None:
+    # The start places half the feet 50 mm ahead of their neutral points, beyond the
+    # settle's 40 mm: a settle between the placing and the start would pull them back,
+    # and the start would place them again, for good (the default course stood still
+    # so at x = 5.9 m).
+    planner, legs = standing()
+    pushed = _PushedLegs()
+    pushed.feet = legs.feet
+    # LF and RM stand where the start puts them (the walk stopped there), LR does not.
+    pushed.steps = dict(legs.steps)
+    for leg, dx in ((1, 0.05), (2, 0.05)):
+        step, _ = legs.steps[leg]
+        x, y, z = planner.neutral_points[leg]
+        pushed.steps[leg] = (dataclasses.replace(step, target=(x + dx, y, z)), step.target)
+    said = drive(planner, pushed, 3.0, 7.0, commands={3.0: cmd(gait="tripod", vx_m_s=0.1)})
+    changes = activities(said)
+    assert ("standing", "walking") in changes, changes
+    assert changes.count(("standing", "transition")) <= 2, changes
