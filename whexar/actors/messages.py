@@ -627,7 +627,9 @@ class StepCommand(Message):
 
     ``search_depth_m`` (a swing): a foot that found no ground where expected searches
     down this far for it (the searching reflex's, 4.2.2), the stance going on from
-    where it finds it; 0: it stays where the ground was expected.
+    where it finds it; 0: it stays where the ground was expected. ``reach_depth_m`` (a
+    swing): its stance foot, if it loses the ground it stood on, reaches down this far
+    for it while the walk goes on (:mod:`whexar.actors.locomotion.steps`); 0: it does not.
 
     The wheels take their orders from :class:`BodyMotion`, every cycle.
     """
@@ -641,6 +643,7 @@ class StepCommand(Message):
     trajectory: str = "parabola"
     duty_factor: float = 0.5
     search_depth_m: float = 0.0
+    reach_depth_m: float = 0.0
 
 
 @message
@@ -758,6 +761,9 @@ class ReflexRequest(Message):
       commands are refused from then on;
     * ``search_depth_m``: swings search down this far for ground they do not find where
       expected (the searching reflex, 4.2.2); 0 withdraws;
+    * ``reach_depth_m``: a stance foot that loses its ground reaches down this far for it,
+      the walk going on (the searching reflex where four or five feet hold the body,
+      6.7.3); 0 withdraws;
     * ``trochanter_rad``: hold the trochanters at this angle (eq. 4.18's body pitch: the
       legs parallel to gravity, the trochanter reflex, 6.7.6), in place of the
       coordinator's own rule; 0 withdraws;
@@ -780,6 +786,7 @@ class ReflexRequest(Message):
     sit_down: bool = False
     reason: str = ""
     search_depth_m: float | None = None
+    reach_depth_m: float | None = None
     restep_leg: int | None = None
     restep_offset_m: tuple[float, float] = (0.0, 0.0)
     trochanter_rad: float | None = None

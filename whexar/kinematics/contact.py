@@ -101,7 +101,13 @@ class StanceLoss:
         self.free_since: list[float | None] = [None] * legs
 
     def lost(self, t: float, leg: int, phase: str, contact: bool, confidence: float) -> bool:
-        """One leg's state at ``t``: whether its support is lost now."""
+        """One leg's state at ``t``: whether its support is lost now. A stance foot that
+        reaches down for the ground it lost (phase ``search`` after a supported stance:
+        the leg held the loss ``hold_s`` itself) has lost it now."""
+        if phase == "search" and self.supported[leg] and confidence >= self.confidence:
+            self.supported[leg] = False
+            self.free_since[leg] = None
+            return True
         if phase != "stance" or contact:
             self.supported[leg] = contact and phase == "stance"
             self.free_since[leg] = None

@@ -61,6 +61,7 @@ def step(
     *,
     height_m: float = 0.0,
     search_depth_m: float = 0.0,
+    reach_depth_m: float = 0.0,
 ) -> StepCommand:
     return StepCommand(
         t=t,
@@ -72,6 +73,7 @@ def step(
         target=target,
         height_m=height_m,
         search_depth_m=search_depth_m,
+        reach_depth_m=reach_depth_m,
     )
 
 
@@ -574,3 +576,50 @@ def test_a_stance_foot_its_force_sensor_reads_lighter_than_the_others_goes_down(
         # Down at 5e-5 m/s per count of the 167 under the six feet's mean of 467.
         expected = NEUTRAL[2] - (gain * 167 * 0.5 if lower else 0.0)
         assert leg.foot[2] == pytest.approx(expected, abs=0.0008), (source, on)
+
+
+def lost_support(
+    leg: LegController, angles: list[float], drop_m: float, reach_m: float = 0.06
+) -> list[Message]:
+    """A swing whose stance reaches ``reach_m`` lands on the ground expected at 1.6 s; at
+    2.5 s that ground drops ``drop_m`` under the stance foot (a support giving way)."""
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, reach_depth_m=reach_m)
+
+    def amps(t: float) -> float:
+        assert leg.foot is not None
+        ground = NEUTRAL[2] - (drop_m if t >= 2.5 else 0.0)
+        return LOADED_A if t > 1.15 and leg.foot[2] <= ground + 1e-9 else 0.0
+
+    return cycles(leg, angles, 5.0, lambda t: (cmd,) if t == 1.1 else (), amps)
+
+
+def test_a_stance_foot_that_loses_its_support_reaches_down_for_it() -> None:
+    leg, angles = placed()
+    out = lost_support(leg, angles, 0.03)
+    assert [e.outcome for e in swing_ends(out)] == ["completed"]
+    said = [m for m in out if isinstance(m, LegState)]
+    reaching = [s.t for s in said if s.phase == "search"]
+    # It held the loss touchdown_s, then went down at search_speed (3 cm: 0.6 s).
+    assert reaching[0] == pytest.approx(2.5 + CFG.contact.touchdown_s, abs=0.03)
+    assert reaching[-1] == pytest.approx(2.5 + CFG.contact.touchdown_s + 0.6, abs=0.04)
+    assert said[-1].phase == "stance"
+    assert leg.foot is not None
+    assert leg.foot[2] == pytest.approx(NEUTRAL[2] - 0.03, abs=0.002)  # it stands there
+
+
+def test_a_stance_foot_reaches_down_only_when_its_swing_asked_it_to() -> None:
+    leg, angles = placed()
+    out = lost_support(leg, angles, 0.03, reach_m=0.0)
+    assert "search" not in {m.phase for m in out if isinstance(m, LegState)}
+    assert leg.foot is not None
+    assert leg.foot[2] == pytest.approx(NEUTRAL[2], abs=1e-6)
+
+
+def test_a_stance_foot_reaches_down_no_further_than_its_depth() -> None:
+    leg, angles = placed()
+    out = lost_support(leg, angles, 0.5)
+    # Down from 2.75 s at 0.05 m/s: the 6 cm by 3.95 s, then it stands where it got.
+    after = [m.phase for m in out if isinstance(m, LegState) and m.t > 4.0]
+    assert after == ["stance"] * len(after)
+    assert leg.foot is not None
+    assert leg.foot[2] == pytest.approx(NEUTRAL[2] - 0.06, abs=1e-6)

@@ -337,6 +337,23 @@ def test_swings_search_as_deep_as_the_deepest_request() -> None:
     assert {m.search_depth_m for m in moves} <= {0.0}  # only swings search
 
 
+def test_swings_stances_reach_as_far_as_asked_until_withdrawn() -> None:
+    planner, legs = standing()
+    t0 = 3.0
+    said = drive(
+        planner,
+        legs,
+        t0,
+        t0 + 5.0,
+        {t0: cmd(vx_m_s=0.1)},
+        {t0 + 2.0: ask("reflex-a", reach_depth_m=0.06), t0 + 3.5: ask("reflex-a", reach_depth_m=0)},
+    )
+    swings = [(m.t, m.reach_depth_m) for m in said if isinstance(m, StepCommand)]
+    assert {d for t, d in swings if t < t0 + 2.0} == {0.0}
+    assert {d for t, d in swings if t0 + 2.0 < t < t0 + 3.5} == {0.06}
+    assert {d for t, d in swings if t > t0 + 3.5} == {0.0}
+
+
 def test_a_restep_halts_the_walk_steps_the_leg_and_the_walk_goes_on() -> None:
     planner, legs = standing()
     t0 = 3.0

@@ -83,6 +83,48 @@ def test_a_support_lost_in_stance_is_stepped_again_once() -> None:
     assert "lost its support" in s.reason
 
 
+def test_a_stance_foot_reaching_down_is_active_and_stepped_again_only_if_it_finds_nothing() -> None:
+    s = searching()
+    s.react(0.5, locomotion_state(0.5, "walking", gait="ripple"))
+    s.react(1.0, state(1.0, "stance", True))
+    # The leg held the loss itself and reaches down (phase search): nothing is asked.
+    assert requests(s.react(1.3, state(1.3, "search", False))) == []
+    assert s.active
+    assert "reaching down" in s.reason
+    assert requests(s.react(1.5, state(1.5, "search", False))) == []
+    # It found ground: the walk went on all along, the reflex is quiet.
+    assert requests(s.react(1.6, state(1.6, "stance", True))) == []
+    assert not s.active
+    # Its swing came while it reached: that swing searches, nothing is asked.
+    s.react(2.0, state(2.0, "stance", True))
+    s.react(2.3, state(2.3, "search", False))
+    assert requests(s.react(2.4, state(2.4, "swing", False))) == []
+    assert not s.active
+    s.react(2.9, state(2.9, "stance", True))
+    # Later it loses it again, and finds nothing within its reach.
+    s.react(3.0, state(3.0, "search", False))
+    (req,) = requests(s.react(4.2, state(4.2, "stance", False)))
+    assert (req.restep_leg, req.restep_offset_m) == (2, (0.0, 0.0))
+    assert "stepped again" in s.reason
+
+
+def test_stance_feet_are_asked_to_reach_down_where_four_or_five_feet_hold_the_body() -> None:
+    s = searching()
+    (ripple,) = requests(s.react(0.5, locomotion_state(0.5, "walking", gait="ripple")))
+    assert ripple.reach_depth_m == 0.06
+    assert requests(s.react(0.6, locomotion_state(0.6, "walking", gait="wave"))) == []
+    (tripod,) = requests(s.react(0.7, locomotion_state(0.7, "walking", gait="tripod")))
+    assert tripod.reach_depth_m == 0.0
+
+
+def test_in_the_tripod_a_stance_foot_reaching_down_is_stepped_again_at_once() -> None:
+    s = searching()
+    s.react(0.5, locomotion_state(0.5, "walking", gait="tripod"))
+    s.react(1.0, state(1.0, "stance", True))
+    (req,) = requests(s.react(1.3, state(1.3, "search", False)))
+    assert (req.restep_leg, req.restep_offset_m) == (2, (0.0, 0.0))
+
+
 def test_a_stance_that_never_had_contact_is_no_loss() -> None:
     s = searching()
     out: list[Command] = []

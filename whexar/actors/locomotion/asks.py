@@ -36,6 +36,8 @@ class Asks:
         self.sit: tuple[str, str] | None = None
         """(reflex, why) of the first request to sit down, once made."""
         self.depths: dict[str, float] = {}
+        self.reaches: dict[str, float] = {}
+        """reflex → how far its stance feet reach down for ground they lost."""
         """reflex → how deep its swings search."""
         self.trochanters: dict[str, float] = {}
         """reflex → the trochanter angle it asks for (rad)."""
@@ -75,6 +77,11 @@ class Asks:
                 self.depths[who] = req.search_depth_m
             else:
                 self.depths.pop(who, None)
+        if req.reach_depth_m is not None and math.isfinite(req.reach_depth_m):
+            if req.reach_depth_m > 0.0:
+                self.reaches[who] = req.reach_depth_m
+            else:
+                self.reaches.pop(who, None)
         if req.trochanter_rad is not None and math.isfinite(req.trochanter_rad):
             if req.trochanter_rad != 0.0:
                 self.trochanters[who] = req.trochanter_rad
@@ -105,6 +112,10 @@ class Asks:
     def search_depth(self) -> float:
         """How deep a swing searches for ground it does not find: the deepest asked."""
         return max(self.depths.values(), default=0.0)
+
+    def reach_depth(self) -> float:
+        """How far a stance foot reaches down for ground it lost: the deepest asked."""
+        return max(self.reaches.values(), default=0.0)
 
     def step_height(self, wanted: float) -> float:
         """The step height to swing with: at least the highest asked, raised by the largest

@@ -185,6 +185,7 @@ class PlannerCore:
                 trajectory=self.loco.trajectory,
                 duty_factor=self.gait.duty_factor,
                 search_depth_m=self.asks.search_depth() if kind == "swing" else 0.0,
+                reach_depth_m=self.asks.reach_depth() if kind == "swing" else 0.0,
             )
         )
 

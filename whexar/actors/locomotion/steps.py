@@ -25,6 +25,12 @@ body carrying the foot as in stance: contact within the depth is a
 ``completed`` swing whose ground lies lower (a negative ground offset), the
 stance going on from there; none is ``no_contact`` at the full depth. A
 contact that never went away after lift-off is not believed (a stuck sensor).
+A stance whose foot had contact and lost it for ``touchdown_s`` (a support
+that gave way, or a body that rolled off it) reaches down for it in the same
+way, as far as the swing's ``reach_depth``, while the walk goes on: the
+stance goes on from where the foot finds ground (the searching reflex asks
+for it where four or five feet hold the body, and, told by the leg's phase,
+steps it again when it finds none).
 The leg asks :func:`interrupted` what a new step does to a touchdown still
 awaited: a new swing judges it at once, a settling move on the ground carries
 its search on (not cut short), and another step on the ground leaves it to be
@@ -116,6 +122,14 @@ class Step:
     """… and no further than this from where its stance began, m."""
     balanced: float = 0.0
     """How far it has moved so (+ up), m."""
+    supported: bool = False
+    """Its stance has had contact (so that a loss of it is a support lost)."""
+    free_since: float | None = None
+    """When the stance lost its contact (None: it has it, or never had)."""
+    reach_depth: float = 0.0
+    """How far its stance foot reaches down for a support it lost, m (0: it does not)."""
+    reached: float = 0.0
+    """How far it has reached so far, m."""
 
     def ground(self) -> float:
         """Where its swing expected the ground (upright frame, m)."""
@@ -150,7 +164,7 @@ def begin(
     spec: StepSpec,
 ) -> Step:
     """The step a leg takes up for ``cmd``, its foot at ``origin``."""
-    depth = cmd.search_depth_m
+    depth, reach = cmd.search_depth_m, cmd.reach_depth_m
     return Step(
         cmd.kind,
         cmd.start_t,
@@ -165,6 +179,7 @@ def begin(
         balance_speed=spec.balance_speed,
         balance_m=spec.balance_m,
         search_depth=depth if math.isfinite(depth) else 0.0,
+        reach_depth=reach if math.isfinite(reach) else 0.0,
         search_speed=spec.search_speed,
     )
 
@@ -247,13 +262,44 @@ def advance(
             foot[2] -= down
             step.searched += down
             return "search", u, None
-    elif kind == "stance" and load_error is not None and step.balance_gain > 0.0:
+    elif (
+        kind == "stance"
+        and step.reach_depth > 0.0
+        and source != "none"
+        and _reach(step, foot, t, dt, contact)
+    ):
+        return "search", u, None
+    if (
+        kind == "stance"
+        and not step.awaiting
+        and load_error is not None
+        and step.balance_gain > 0.0
+    ):
         v = step.balance_gain * load_error
         v = max(-step.balance_speed, min(step.balance_speed, v))
         to = max(-step.balance_m, min(step.balance_m, step.balanced - v * dt))
         foot[2] += to - step.balanced
         step.balanced = to
     return kind, u, None
+
+
+def _reach(step: Step, foot: list[float], t: float, dt: float, contact: bool) -> bool:
+    """A stance foot that had contact and lost it for ``touchdown_s`` reaches down for it at
+    ``search_speed``, as far as ``reach_depth`` (6.7.3: "first in the downward
+    direction"); the body and the walk go on. Returns whether it reaches now."""
+    if contact:
+        step.supported, step.free_since = True, None
+        return False
+    if not step.supported or step.reached >= step.reach_depth:
+        return False
+    if step.free_since is None:
+        step.free_since = t
+    if t - step.free_since < step.touchdown_s:
+        return False
+    down = min(step.search_speed * dt, step.reach_depth - step.reached)
+    foot[2] -= down
+    step.reached += down
+    return True
 
 
 def load_error(counts: Sequence[int], contacts: Sequence[bool], leg: int) -> float | None:

@@ -31,10 +31,14 @@ the downward direction and eventually in other directions" (6.7.3). Here:
   support of one leg" (6.7.3) — there the walk goes on, the leg trying again
   at its next swing;
 * **support lost in stance**: a foot that had contact in its stance and lost
-  it for ``contact.touchdown_s`` (the estimate believing it) is stepped again
-  where it should be, searching, in the ``around_gaits``; in the others the
-  other feet hold the body and its next swing searches (the terrain
-  estimator counts each loss as a "disappeared support", 5.4, in every gait).
+  it for ``contact.touchdown_s`` (the estimate believing it) reaches down for
+  it as a swing searches (the leg's phase ``search``,
+  :mod:`whexar.actors.locomotion.steps`), the walk going on where four or
+  five feet hold the body; in the ``halt_gaits`` (three feet), and when it
+  finds nothing within the depth, it is stepped again where it should be,
+  searching, in the ``around_gaits``; in the others the other feet hold the
+  body and its next swing searches (the terrain estimator counts each loss as
+  a "disappeared support", 5.4, in every gait).
 
 The early-contact stop of 6.7.3 is the leg's own adaptive swing.
 """
@@ -100,11 +104,15 @@ class Searching(Reflex):
         """Legs whose foot looks for ground now."""
         self.halted: set[int] = set()
         """Legs that found none: the body is held for them."""
+        self.reaching: set[int] = set()
+        """Stance legs reaching down for a support they lost."""
         self.losses = StanceLoss(N_LEGS, cfg.contact.touchdown_s, self.params.confidence)
         self.gait = "tripod"
         """The gait the coordinator walks (its state)."""
         self.found_until = -1e9
         """A hole found keeps the reflex active until then (a spell on the timeline)."""
+        self.reach = 0.0
+        """How far it asked stance feet to reach down (0 in the ``halt_gaits``)."""
 
     def tick(self, t: float) -> Iterable[Command]:
         if self.found_until <= t:
@@ -121,6 +129,11 @@ class Searching(Reflex):
             return self._leg(t, msg)
         if isinstance(msg, LocomotionState):
             self.gait = msg.gait
+            reach = 0.0 if msg.gait in self.params.halt_gaits else self.params.depth_m
+            if reach != self.reach:
+                self.reach = reach
+                why = f"stance feet reach down for lost ground ({msg.gait})"
+                return (self.request(t, reach_depth_m=reach, reason=why),)
         return ()
 
     def _swing(self, t: float, msg: SwingEnded) -> list[Command]:
@@ -164,9 +177,24 @@ class Searching(Reflex):
 
     def _leg(self, t: float, msg: LegState) -> list[Command]:
         i = msg.leg
-        if not self.losses.lost(t, i, msg.phase, msg.contact, msg.contact_confidence):
+        lost = self.losses.lost(t, i, msg.phase, msg.contact, msg.contact_confidence)
+        if lost and msg.phase == "search" and self.gait not in self.params.halt_gaits:
+            # The leg reaches down while four or five feet hold the body; on three (the
+            # tripod's) the walk rocks over the edge that took the support: stepped again.
+            self.active = True
+            self.reaching.add(i)
+            self.reason = f"{LEG_NAMES[i]} lost its support in stance: reaching down"
+            return []
+        if i in self.reaching and msg.phase != "search":
+            self.reaching.discard(i)
+            if msg.contact or msg.phase != "stance":
+                self._settle(t)  # found, or its swing came first: that swing searches
+                return []
+            lost = True  # nothing within its reach
+        if not lost:
             return []
         if self.gait not in self.params.around_gaits:
+            self._settle(t)
             return []  # the other feet hold the body; its next swing searches
         self.active = True
         self.searching.add(i)
@@ -174,6 +202,6 @@ class Searching(Reflex):
         return [self.request(t, restep_leg=i, reason=self.reason)]
 
     def _settle(self, t: float) -> None:
-        if not (self.searching or self.halted) and self.found_until <= t:
+        if not (self.searching or self.halted or self.reaching) and self.found_until <= t:
             self.active = False
             self.reason = ""
