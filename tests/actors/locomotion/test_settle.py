@@ -107,9 +107,9 @@ class _PushedLegs(PerfectLegs):
 
 def test_a_gait_starts_though_the_standing_feet_settle() -> None:
     # The start places half the feet 50 mm ahead of their neutral points, beyond the
-    # settle's 40 mm: a settle between the placing and the start would pull them back,
-    # and the start would place them again, for good (the default course stood still
-    # so at x = 5.9 m).
+    # settle's 40 mm. The settle of the cycle the start began in pulled the ones already
+    # there back to 40 mm, and the start placed them again, for good (the default course
+    # stood still so at x = 5.9 m): the settle leaves a goal put further out where it is.
     planner, legs = standing()
     pushed = _PushedLegs()
     pushed.feet = legs.feet

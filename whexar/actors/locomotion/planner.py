@@ -156,10 +156,7 @@ class LocomotionPlanner(WalkOnLosses):
                 self.set_activity(Activity.HYBRID if hybrid else Activity.WALKING)
             elif self.activity in (Activity.WALKING, Activity.HYBRID):
                 self.set_activity(Activity.STANDING)
-            # Not while a gait's start places the feet: the settle keeps each foot
-            # within settle_max_mm of its neutral point, and would pull back the ones
-            # the start places further out (a livelock of placing and settling).
-            if self.activity == Activity.STANDING and self.script is None:
+            if self.activity == Activity.STANDING:
                 self._settle()
             if self.script is None:
                 self._ride_riders()

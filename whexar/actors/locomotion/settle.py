@@ -71,7 +71,10 @@ def settled(
         x, y = g[0] + fraction * ex, g[1] + fraction * ey
         dx, dy = x - n[0], y - n[1]
         far = math.hypot(dx, dy)
-        if far > limit_m:
-            x, y = n[0] + dx * limit_m / far, n[1] + dy * limit_m / far
+        # A goal the planner put further out (a gait's start places feet up to half a
+        # stride from neutral) is not pulled in: only the settle's own moves are bounded.
+        limit = max(limit_m, math.hypot(g[0] - n[0], g[1] - n[1]))
+        if far > limit:
+            x, y = n[0] + dx * limit / far, n[1] + dy * limit / far
         out[i] = (x, y, g[2])
     return out
