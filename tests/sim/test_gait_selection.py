@@ -1,9 +1,10 @@
 """The gait selector in the simulated world: the operator asks for ``auto`` and walks
 from the flat over a field of rocks (40 of up to 8 cm, x = 1–2 m) and on to the flat.
 On the rocks the terrain asks for a higher step than the tripod's limit (Table 5.9:
-100 mm), then feet lose their supports, and the selector moves to a more stable gait at
-once, up to the wave; past the rocks, after each calm period, it returns one rank at a
-time to the tripod — each change kept for its minimum dwell, never back and forth."""
+100 mm), and the selector moves to a more stable gait at once (further, up to the wave,
+where feet lose their supports: the selector's own tests); past the rocks, after each
+calm period, it returns one rank at a time to the tripod — each change kept for its
+minimum dwell, never back and forth."""
 
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ def test_rough_then_smooth_ground_takes_stabler_gaits_and_back() -> None:
     # Up while on the rocks, then down: never back and forth.
     assert ranks[: top + 1] == sorted(ranks[: top + 1])
     assert ranks[top:] == sorted(ranks[top:], reverse=True)
-    assert max(ranks) >= stability_rank("ripple")
+    assert max(ranks) >= stability_rank("tetrapod")
     assert walked[0].before == walked[-1].after == "tripod"
     assert 0.6 < x_at(walked[0].t) < 2.0  # the front feet reach the rocks first
     assert x_at(walked[-1].t) > 2.0  # the tripod again once past them
