@@ -63,5 +63,5 @@ def test_only_a_stance_with_a_known_error_counts(phase: str, error: float | None
     assert requests(feed(stepping(), 1.0, 2.0, error, phase)) == []
 
 
-def test_it_holds_back_the_elevator_not_the_searching_reflex() -> None:
-    assert set(Stepping.inhibits) == {"reflex-elevator"}
+def test_it_holds_back_the_searching_and_elevator_reflexes() -> None:
+    assert set(Stepping.inhibits) == {"reflex-searching", "reflex-elevator"}

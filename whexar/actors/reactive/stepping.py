@@ -16,12 +16,9 @@ leg again to its neutral point (``restep_leg``): the body halts, the leg swings
 there, the walk goes on. A leg is stepped again at most once per ``rest_s``;
 the reflex is active from its request until ``rest_s`` passes.
 
-While active it holds back the elevator (``inhibits``): a leg pushed off its
-foothold meets things on its way, and the thesis had to disable "other
-reflexes" by hand to test this one. Not the searching reflex: held back, it
-saw no swing's end for 2 s at each step again, and at a trench's edge, where
-the tipping body pulls feet from their goals again and again, it never came to
-its safe stop (docs/reflexes.md).
+While active it holds back the searching and elevator reflexes (``inhibits``):
+a leg pushed off its foothold loses its support and meets things on its way,
+and the thesis had to disable "other reflexes" by hand to test this one.
 
 Walking the tripod gait on the flat, a stance foot is 9 mm from its goal's
 point at the median and 17 mm at most; on 15° 18 mm and 34 mm; a snagged coxa
@@ -63,7 +60,7 @@ class Stepping(Reflex):
 
     inputs = ("legs",)
     priority = 30
-    inhibits = ("reflex-elevator",)
+    inhibits = ("reflex-searching", "reflex-elevator")
     tick_s = 0.1
     Params = SteppingParams
     params: SteppingParams
