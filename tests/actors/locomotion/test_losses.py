@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import pytest
 
-from tests.actors.locomotion.test_planner import CFG, cmd, drive, standing
+from tests.actors.locomotion.test_planner import CFG, T0, cmd, drive, standing, walked
 from whexar.actors.locomotion.losses import LostJoints
 from whexar.actors.messages import (
     BodyMotion,
@@ -78,16 +78,8 @@ def all_joints_but(
 
 
 def test_a_lost_coxa_leg_rides_its_wheel_while_the_others_walk() -> None:
-    planner, legs = standing()
-    t0 = 3.0
-    said = drive(
-        planner,
-        legs,
-        t0,
-        t0 + 8.0,
-        {t0: cmd(vx_m_s=0.1)},
-        joints=all_joints_but({(RM, COXA)}, t0 + 2.0),
-    )
+    t0 = T0
+    _, said = walked(8.0, joints=all_joints_but({(RM, COXA)}, t0 + 2.0))
     lost = [e for e in said if isinstance(e, JointLost)]
     assert [(e.leg, e.joint) for e in lost] == [(RM, COXA)]
     assert "rides its wheel" in lost[0].action
@@ -115,16 +107,8 @@ def test_a_lost_coxa_leg_rides_its_wheel_while_the_others_walk() -> None:
 
 
 def test_a_coxa_read_again_walks_its_leg_again() -> None:
-    planner, legs = standing()
-    t0 = 3.0
-    said = drive(
-        planner,
-        legs,
-        t0,
-        t0 + 8.0,
-        {t0: cmd(vx_m_s=0.1)},
-        joints=all_joints_but({(RM, COXA)}, t0 + 1.0, t0 + 3.0),
-    )
+    t0 = T0
+    planner, said = walked(8.0, joints=all_joints_but({(RM, COXA)}, t0 + 1.0, t0 + 3.0))
     back = [e for e in said if isinstance(e, JointBack)]
     assert [(e.leg, e.joint, e.t) for e in back] == [(RM, COXA, t0 + 3.0)]
     swings = [m for m in said if isinstance(m, StepCommand) and m.kind == "swing" and m.t > t0 + 3]

@@ -116,6 +116,22 @@ def standing() -> tuple[LocomotionPlanner, PerfectLegs]:
     return planner, legs
 
 
+T0 = 3.0
+"""When a walk below starts: the planner stands by then."""
+
+
+def walked(
+    seconds: float,
+    requests: Mapping[float, ReflexRequest] = {},
+    joints: Callable[[float], tuple[JointState, ...]] = lambda t: (),
+) -> tuple[LocomotionPlanner, list[Message]]:
+    """A standing planner asked to walk at 0.1 m/s at :data:`T0`, cycled ``seconds`` on
+    with ``requests`` at their times: the planner, and what it said."""
+    planner, legs = standing()
+    said = drive(planner, legs, T0, T0 + seconds, {T0: cmd(vx_m_s=0.1)}, requests, joints)
+    return planner, said
+
+
 def activities(said: list[Message]) -> list[tuple[str, str]]:
     return [
         (e.before, e.after)
@@ -245,14 +261,9 @@ def test_a_reflex_that_asks_to_sit_down_sits_the_robot_and_it_stays_seated() -> 
 
 
 def test_a_halt_stops_the_body_until_withdrawn_and_the_walk_goes_on() -> None:
-    planner, legs = standing()
-    t0 = 3.0
-    said = drive(
-        planner,
-        legs,
-        t0,
-        t0 + 8.0,
-        {t0: cmd(vx_m_s=0.1)},
+    t0 = T0
+    planner, said = walked(
+        8.0,
         {t0 + 2.0: ask(halt=True, reason="obstacle"), t0 + 5.0: ask(halt=False)},
     )
     speed = {round(s.t, 2): s.twist[0] for s in states_of(said)}
@@ -314,14 +325,9 @@ def test_a_raise_lifts_the_operators_step_within_the_limit() -> None:
 
 
 def test_swings_search_as_deep_as_the_deepest_request() -> None:
-    planner, legs = standing()
-    t0 = 3.0
-    said = drive(
-        planner,
-        legs,
-        t0,
-        t0 + 6.0,
-        {t0: cmd(vx_m_s=0.1)},
+    t0 = T0
+    _, said = walked(
+        6.0,
         {
             t0 + 2.0: ask("reflex-a", search_depth_m=0.06),
             t0 + 3.0: ask("reflex-b", search_depth_m=0.08),
@@ -338,14 +344,9 @@ def test_swings_search_as_deep_as_the_deepest_request() -> None:
 
 
 def test_swings_stances_reach_as_far_as_asked_until_withdrawn() -> None:
-    planner, legs = standing()
-    t0 = 3.0
-    said = drive(
-        planner,
-        legs,
-        t0,
-        t0 + 5.0,
-        {t0: cmd(vx_m_s=0.1)},
+    t0 = T0
+    _, said = walked(
+        5.0,
         {t0 + 2.0: ask("reflex-a", reach_depth_m=0.06), t0 + 3.5: ask("reflex-a", reach_depth_m=0)},
     )
     swings = [(m.t, m.reach_depth_m) for m in said if isinstance(m, StepCommand)]
@@ -355,14 +356,9 @@ def test_swings_stances_reach_as_far_as_asked_until_withdrawn() -> None:
 
 
 def test_a_restep_halts_the_walk_steps_the_leg_and_the_walk_goes_on() -> None:
-    planner, legs = standing()
-    t0 = 3.0
-    said = drive(
-        planner,
-        legs,
-        t0,
-        t0 + 8.0,
-        {t0: cmd(vx_m_s=0.1)},
+    t0 = T0
+    planner, said = walked(
+        8.0,
         {t0 + 2.0: ask("reflex-stepping", restep_leg=2, restep_offset_m=(0.03, 0.0))},
     )
     (done,) = [m for m in said if isinstance(m, Restepped)]
