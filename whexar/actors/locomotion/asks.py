@@ -36,9 +36,9 @@ class Asks:
         self.sit: tuple[str, str] | None = None
         """(reflex, why) of the first request to sit down, once made."""
         self.depths: dict[str, float] = {}
+        """reflex → how deep its swings search."""
         self.reaches: dict[str, float] = {}
         """reflex → how far its stance feet reach down for ground they lost."""
-        """reflex → how deep its swings search."""
         self.trochanters: dict[str, float] = {}
         """reflex → the trochanter angle it asks for (rad)."""
         self.restep: ReflexRequest | None = None
