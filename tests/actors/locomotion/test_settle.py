@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import pytest
 
@@ -46,19 +47,26 @@ def test_no_goal_goes_further_than_the_limit_from_its_neutral_point() -> None:
     assert math.dist(moves[0][:2], NEUTRAL[0][:2]) == pytest.approx(0.04)
 
 
-class _DraggedRF(PerfectLegs):
-    """Perfect legs, but friction holds RF's wheel where it stands: the servos measure it
-    there whatever its goal."""
+Vec = tuple[float, float, float]
 
-    def __init__(self, held: tuple[float, float, float]) -> None:
+
+class _MeasuredLegs(PerfectLegs):
+    """Perfect legs whose servos measure each foot at ``measure(leg, goal's point)``."""
+
+    def __init__(self, legs: PerfectLegs, measure: Callable[[int, Vec], Vec]) -> None:
         super().__init__()
-        self.held = held
+        self.steps, self.feet = legs.steps, legs.feet
+        self.measure = measure
 
     def states(self, t: float, cycle: int) -> list[LegState]:
         out = super().states(t, cycle)
-        return [
-            dataclasses.replace(s, measured_foot=self.held if s.leg == 0 else s.foot) for s in out
-        ]
+        return [dataclasses.replace(s, measured_foot=self.measure(s.leg, s.foot)) for s in out]
+
+
+def _dragged_rf(legs: PerfectLegs, held: Vec) -> _MeasuredLegs:
+    """Friction holds RF's wheel where it stands: the servos measure it there whatever its
+    goal."""
+    return _MeasuredLegs(legs, lambda leg, foot: held if leg == 0 else foot)
 
 
 def test_standing_the_planner_moves_a_dragged_foot_s_goal_to_where_it_is() -> None:
@@ -66,8 +74,7 @@ def test_standing_the_planner_moves_a_dragged_foot_s_goal_to_where_it_is() -> No
     foot = planner.feet[0]
     assert foot is not None
     held = (foot[0], foot[1] + 0.030, foot[2])  # 30 mm inward of its goal
-    dragged = _DraggedRF(held)
-    dragged.steps, dragged.feet = legs.steps, legs.feet
+    dragged = _dragged_rf(legs, held)
     said = drive(planner, dragged, 3.0, 6.0)
     moves = [m for m in said if isinstance(m, StepCommand) and m.kind == "move"]
     assert {m.leg for m in moves} == set(range(6))  # the others by the mean's share
@@ -84,25 +91,15 @@ def test_with_settling_off_the_goals_hold() -> None:
     planner.loco = planner.loco.model_copy(update={"settle_s": 0.0})
     foot = planner.feet[0]
     assert foot is not None
-    dragged = _DraggedRF((foot[0], foot[1] + 0.030, foot[2]))
-    dragged.steps, dragged.feet = legs.steps, legs.feet
+    dragged = _dragged_rf(legs, (foot[0], foot[1] + 0.030, foot[2]))
     said = drive(planner, dragged, 3.0, 4.0)
     assert not [m for m in said if isinstance(m, StepCommand) and m.kind == "move"]
 
 
-class _PushedLegs(PerfectLegs):
-    """Perfect legs whose servos measure each foot pushed a few millimetres sideways of
-    its goal, the left and right legs apart: the settle always has a move to make."""
-
-    def states(self, t: float, cycle: int) -> list[LegState]:
-        out = super().states(t, cycle)
-        return [
-            dataclasses.replace(
-                s,
-                measured_foot=(s.foot[0], s.foot[1] + (0.006 if s.leg % 2 else -0.006), s.foot[2]),
-            )
-            for s in out
-        ]
+def _pushed(leg: int, foot: Vec) -> Vec:
+    """Each foot measured a few millimetres sideways of its goal, the left and right legs
+    apart: the settle always has a move to make."""
+    return (foot[0], foot[1] + (0.006 if leg % 2 else -0.006), foot[2])
 
 
 def test_a_gait_starts_though_the_standing_feet_settle() -> None:
@@ -111,8 +108,7 @@ def test_a_gait_starts_though_the_standing_feet_settle() -> None:
     # there back to 40 mm, and the start placed them again, for good (the default course
     # stood still so at x = 5.9 m): the settle leaves a goal put further out where it is.
     planner, legs = standing()
-    pushed = _PushedLegs()
-    pushed.feet = legs.feet
+    pushed = _MeasuredLegs(legs, _pushed)
     # LF and RM stand where the start puts them (the walk stopped there), LR does not.
     pushed.steps = dict(legs.steps)
     for leg, dx in ((1, 0.05), (2, 0.05)):

@@ -258,9 +258,7 @@ def advance(
         if step.touchdown_due(t):
             if step.searched >= step.search_depth:
                 return kind, u, step.judged(False)
-            down = min(step.search_speed * dt, step.search_depth - step.searched)
-            foot[2] -= down
-            step.searched += down
+            step.searched += _lower(foot, step.search_speed * dt, step.search_depth - step.searched)
             return "search", u, None
     elif (
         kind == "stance"
@@ -296,10 +294,15 @@ def _reach(step: Step, foot: list[float], t: float, dt: float, contact: bool) ->
         step.free_since = t
     if t - step.free_since < step.touchdown_s:
         return False
-    down = min(step.search_speed * dt, step.reach_depth - step.reached)
-    foot[2] -= down
-    step.reached += down
+    step.reached += _lower(foot, step.search_speed * dt, step.reach_depth - step.reached)
     return True
+
+
+def _lower(foot: list[float], by: float, left: float) -> float:
+    """Lower ``foot`` by ``by``, no further than ``left``: how far it went."""
+    down = min(by, left)
+    foot[2] -= down
+    return down
 
 
 def load_error(counts: Sequence[int], contacts: Sequence[bool], leg: int) -> float | None:

@@ -59,9 +59,9 @@ from whexar.errors import MISSING, Problem
 from whexar.runtime.messages import Event, Message
 
 ENTRY_POINTS: Final = "whexar.reflexes"
+"""The entry-point group a reflex package registers its reflexes in (name → class)."""
 WALKING: Final = frozenset({"walking", "hybrid"})
 """The coordinator's activities (:class:`LocomotionState`) in which the robot walks on."""
-"""The entry-point group a reflex package registers its reflexes in (name → class)."""
 
 STREAMS: Final[Mapping[str, tuple[type[Message], str]]] = {
     "swings": (SwingEnded, "swings"),

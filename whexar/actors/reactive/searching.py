@@ -178,7 +178,7 @@ class Searching(Reflex):
     def _leg(self, t: float, msg: LegState) -> list[Command]:
         i = msg.leg
         lost = self.losses.lost(t, i, msg.phase, msg.contact, msg.contact_confidence)
-        if lost and msg.phase == "search" and self.gait not in self.params.halt_gaits:
+        if lost and msg.phase == "search" and self.reach > 0.0:
             # The leg reaches down while four or five feet hold the body; on three (the
             # tripod's) the walk rocks over the edge that took the support: stepped again.
             self.active = True
