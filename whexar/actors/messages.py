@@ -680,6 +680,9 @@ class LegState(Message):
     """How far the foot is from where the goals sent put it (FK of the present angles
     against FK of the goals): the servos' tracking error at the foot — a leg pushed, held
     or snagged away from its goal (the stepping reflex's signal, 6.7.1)."""
+    touchdown_pending: bool = False
+    """A swing's touchdown is still awaited: its outcome (:class:`SwingEnded`) not judged
+    yet, its search for the ground included. The coordinator lifts no such foot."""
 
 
 @message

@@ -550,6 +550,39 @@ def test_a_settling_move_during_a_search_lets_the_search_go_on() -> None:
     assert leg.foot[2] == pytest.approx(ground, abs=0.002)
 
 
+def test_a_search_goes_on_through_settling_moves_one_after_another() -> None:
+    leg, angles = placed()
+    # The walk held as the swing ends: the planner settles the foot every 0.2 s with a
+    # 0.2 s move, so the foot is always moving. The search, once
+    # left for the moves' ends, never ran (a foot hanging over a slope's foot for 5 s).
+    ground = NEUTRAL[2] - 0.03
+    cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04, search_depth_m=0.06)
+
+    def steps(t: float) -> tuple[StepCommand, ...]:
+        if t == 1.1:
+            return (cmd,)
+        if t >= 1.7 and round((t - 1.7) / DT) % round(0.2 / DT) == 0:
+            assert leg.foot is not None  # to where the leg says the foot is, as the planner
+            return (step("move", t, 0.2, (leg.foot[0], leg.foot[1], leg.foot[2])),)
+        return ()
+
+    def amps(t: float) -> float:
+        assert leg.foot is not None
+        return LOADED_A if t > 1.15 and leg.foot[2] <= ground + 1e-9 else 0.0
+
+    out = cycles(leg, angles, 3.2, steps, amps)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "completed"
+    assert ended.ground_offset_m == pytest.approx(-0.03, abs=0.002)
+    # As soon as without the moves: touchdown_s, then 0.6 s down at 0.05 m/s.
+    assert ended.t == pytest.approx(1.6 + CFG.contact.touchdown_s + 0.6, abs=0.03)
+    assert leg.foot is not None
+    assert leg.foot[2] == pytest.approx(ground, abs=0.002)  # the moves keep it there
+    pending = [m.t for m in out if isinstance(m, LegState) and m.touchdown_pending]
+    assert min(pending) == pytest.approx(1.6, abs=0.03)  # the coordinator is told
+    assert max(pending) == pytest.approx(ended.t - DT, abs=0.03)
+
+
 def test_a_stance_foot_its_force_sensor_reads_lighter_than_the_others_goes_down() -> None:
     def loads(t: float, rf: int, rf_on: bool) -> LegLoads:
         counts = (rf, 500, 500, 500, 500, 500)

@@ -48,6 +48,8 @@ class PerfectLegs:
     def __init__(self) -> None:
         self.steps: dict[int, tuple[StepCommand, tuple[float, float, float]]] = {}
         self.feet: dict[int, tuple[float, float, float]] = {}
+        self.judged_at: dict[int, float] = {}
+        """Legs whose touchdown is awaited (``touchdown_pending``) until a time."""
 
     def take(self, step: StepCommand) -> None:
         start = self.feet.get(step.leg, step.target)
@@ -76,6 +78,7 @@ class PerfectLegs:
                     contact=True,
                     contact_source="none",
                     load=(None, None),
+                    touchdown_pending=t < self.judged_at.get(leg, -math.inf),
                 )
             )
         return out
@@ -375,6 +378,31 @@ def test_a_restep_halts_the_walk_steps_the_leg_and_the_walk_goes_on() -> None:
     assert others == [step]
     speed = {round(s.t, 2): s.twist[0] for s in states_of(said)}
     assert speed[t0 + 7.9] == pytest.approx(0.1)
+
+
+def lifted(said: list[Message], leg: int) -> list[float]:
+    """When ``leg`` was told to lift its foot: a swing, or a move through the air."""
+    return [
+        m.t
+        for m in said
+        if isinstance(m, StepCommand)
+        and m.leg == leg
+        and (m.kind == "swing" or (m.kind == "move" and m.height_m > 0.0))
+    ]
+
+
+@pytest.mark.parametrize(("pending_s", "lifts_by"), [(1.0, 1.0), (math.inf, 2.65)])
+def test_a_walk_starts_once_every_touchdown_is_judged(pending_s: float, lifts_by: float) -> None:
+    # RM's last step still searches for the ground: lifted now, it would be judged in
+    # the air. The start waits for its judgement, or at most a touchdown's wait and a
+    # search as deep as the highest step (0.25 s + 12 cm at 5 cm/s) for a leg that never
+    # says.
+    planner, legs = standing()
+    legs.judged_at[2] = T0 + pending_s
+    said = drive(planner, legs, T0, T0 + 6.0, {T0: cmd(vx_m_s=0.1)})
+    first = min(t for leg in range(N_LEGS) for t in lifted(said, leg))
+    assert T0 + min(pending_s, lifts_by) <= first <= T0 + lifts_by + 0.05
+    assert planner.activity == Activity.WALKING
 
 
 def test_a_restep_is_refused_on_the_wheels_and_for_no_such_leg() -> None:

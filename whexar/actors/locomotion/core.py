@@ -95,6 +95,8 @@ class PlannerCore:
         """Where each leg's foot is: its present angles' forward kinematics (:meth:`contacts`)."""
         self.measured_raw: list[Vec3 | None] = [None] * N_LEGS
         """The same, off the grid (the settling stance's errors are millimetres)."""
+        self.awaited_since: list[float | None] = [None] * N_LEGS
+        """Since when each leg's touchdown is awaited (``LegState.touchdown_pending``)."""
         self.settle_t = -math.inf
         self.wheel_measured: list[float | None] = [None] * N_LEGS
         self.direction_measured: list[float | None] = [None] * N_LEGS

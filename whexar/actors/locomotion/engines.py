@@ -230,7 +230,9 @@ class Engines(Scripts):
     def _prepare_start(self, twist: tuple[float, float, float]) -> bool:
         """Before a gait starts: put each foot the table has on the ground where its phase
         says it is, so that it reaches its posterior extreme point when it lifts (its
-        stance is centred on its neutral point). Returns True when a script does it."""
+        stance is centred on its neutral point), once every touchdown still awaited is
+        judged (a gait's first swings would judge them in the air). Returns True when a
+        script does it."""
         self.phase = self._start_phase()
         beta, period = self.gait.duty_factor, self.cycle_s
         part = self.gait.swing_fraction
@@ -243,7 +245,8 @@ class Engines(Scripts):
                 continue
             k = period * (1.0 - beta / 2 - psi)
             targets.append((n[0] + k * (vx - w * n[1]), n[1] + k * (vy + w * n[0]), n[2]))
-        if not any(self.away(i, targets[i]) for i in range(N_LEGS)):
+        legs = list(range(N_LEGS))
+        if not self.awaiting(legs) and not any(self.away(i, targets[i]) for i in legs):
             return False
         self.leg_twist = (0.0, 0.0, 0.0)
         self.script = self.placed_for_start(targets)

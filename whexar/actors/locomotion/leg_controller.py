@@ -488,4 +488,6 @@ class LegController:
             ik_ok=self.ik_ok,
             contact_confidence=self.confidence,
             foot_error_m=error,
+            touchdown_pending=self.unjudged is not None
+            or (self.step is not None and self.step.awaiting),
         )

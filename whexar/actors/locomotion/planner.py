@@ -225,6 +225,10 @@ class LocomotionPlanner(WalkOnLosses):
     def _take_legs(self, legs: Iterable[LegState]) -> None:
         for s in legs:
             self.feet[s.leg] = s.foot
+            if not s.touchdown_pending:
+                self.awaited_since[s.leg] = None
+            elif self.awaited_since[s.leg] is None:
+                self.awaited_since[s.leg] = s.t
             m = s.measured_foot
             self.measured_raw[s.leg] = m
             if m is not None:  # on a grid: a command changes when a wheel moved, not with noise

@@ -66,6 +66,7 @@ class Scripts(PlannerCore):
             legs = [i for i in legs if self.away(i, targets[i])]
             if not legs:
                 continue
+            yield from self.judged(legs)
             down = [i for i in range(N_LEGS) if i not in legs]
             if self.margin(down) < self.loco.min_stability_margin_mm / 1000:
                 # The group together is not safe: one leg at a time.
@@ -73,6 +74,23 @@ class Scripts(PlannerCore):
                     yield from self.script_moves([(i, targets[i], height)], duration)
                 continue
             yield from self.script_moves([(i, targets[i], height) for i in legs], duration)
+
+    def awaiting(self, legs: list[int]) -> bool:
+        """Whether one of ``legs`` awaits its touchdown's judgement: a foot lifted then
+        would be judged in the air (``no_contact``), its search for the ground cut off. A
+        leg that says so for longer than a touchdown's wait and a search as deep as the
+        highest step is not waited for."""
+        contact = self.cfg.contact
+        bound = contact.touchdown_s + self.loco.max_step_height_mm / 1000 / contact.search_speed_m_s
+        return any(
+            since is not None and self.t - since < bound
+            for since in (self.awaited_since[i] for i in legs)
+        )
+
+    def judged(self, legs: list[int]) -> Script:
+        """Wait until none of ``legs`` awaits its touchdown's judgement (:meth:`awaiting`)."""
+        if self.awaiting(legs):
+            yield lambda: not self.awaiting(legs)
 
     def replace_s(self) -> float:
         """A re-placing step: as long as the slowest swing the tripod makes at full speed."""
@@ -246,5 +264,6 @@ class Scripts(PlannerCore):
     def placed_for_start(self, targets: list[Vec3]) -> Script:
         activity = self.activity
         self.set_activity(Activity.TRANSITION)
+        yield from self.judged(list(range(N_LEGS)))
         yield from self.replace(targets, self.asked_step_height(), self.replace_s())
         self.set_activity(activity if activity != Activity.TRANSITION else Activity.STANDING)

@@ -33,8 +33,9 @@ for it where four or five feet hold the body, and, told by the leg's phase,
 steps it again when it finds none).
 The leg asks :func:`interrupted` what a new step does to a touchdown still
 awaited: a new swing judges it at once, a settling move on the ground carries
-its search on (not cut short), and another step on the ground leaves it to be
-judged when due.
+its search on, searching during the move too, and another step on the ground
+leaves it to be judged when due. The leg says a touchdown is awaited
+(``LegState.touchdown_pending``), and the coordinator lifts no such foot.
 
 A stance can share the load ("the controller that controlled the leg
 loading", 6.8.1; off by default, ``contact.balance_gain_m_s``): a stance foot
@@ -114,6 +115,10 @@ class Step:
     ground_z: float | None = None
     """Where the ground was expected, for a search this step carries on from an
     interrupted swing's (None: at its own target)."""
+    due_t: float | None = None
+    """When the touchdown it carries on is due (None: ``touchdown_s`` after its end)."""
+    sink: float = 0.0
+    """How far the search it carries has lowered this move's path so far, m."""
     balance_gain: float = 0.0
     """How fast a stance foot moves per count of load below the loaded feet's mean, m/s."""
     balance_speed: float = 0.0
@@ -135,20 +140,29 @@ class Step:
         """Where its swing expected the ground (upright frame, m)."""
         return self.target[2] if self.ground_z is None else self.ground_z
 
+    def due(self) -> float:
+        """When a swing that ended with no contact has waited its ``touchdown_s``."""
+        if self.due_t is not None:
+            return self.due_t
+        return self.start_t + self.duration + self.touchdown_s
+
     def touchdown_due(self, t: float) -> bool:
         """A swing that ended with no contact has waited its ``touchdown_s`` by ``t``."""
-        return t - (self.start_t + self.duration) >= self.touchdown_s
+        return t >= self.due()
 
     def carry_search(self, swing: Step) -> None:
         """Go on with ``swing``'s wait for its touchdown, and its search, from this step
-        on the ground (a settling move made while the walk is held): the search is not
-        cut short, and its outcome is judged against the swing's ground."""
+        on the ground (a settling move made while the walk is held): the search goes on
+        during the move, which keeps the foot's height (the walk held settles a foot
+        every 0.2 s with a 0.2 s move: a search left for the moves' ends never ran), and
+        its outcome is judged against the swing's ground."""
         self.awaiting = True
-        due = swing.start_t + swing.duration + swing.touchdown_s
-        self.touchdown_s = max(0.0, due - (self.start_t + self.duration))
+        self.due_t = swing.due()
+        self.touchdown_s = swing.touchdown_s
         self.search_depth, self.search_speed = swing.search_depth, swing.search_speed
         self.searched = swing.searched
         self.ground_z = swing.ground()
+        self.target = (self.target[0], self.target[1], self.origin[2])
 
     def judged(self, contact: bool) -> SwingOutcome:
         """The outcome of a swing still awaiting its touchdown, judged now."""
@@ -237,10 +251,13 @@ def advance(
         o, g = step.origin, step.target
         foot[0] = o[0] + (g[0] - o[0]) * s
         foot[1] = o[1] + (g[1] - o[1]) * s
-        foot[2] = o[2] + (g[2] - o[2]) * s + step.height * math.sin(math.pi * u)
+        foot[2] = o[2] + (g[2] - o[2]) * s + step.height * math.sin(math.pi * u) - step.sink
+        phase, outcome = "move", None
+        if step.awaiting:  # a settling move carrying a swing's search on (carry_search)
+            phase, outcome = _touchdown(step, foot, t, dt, contact, "move")
         if u >= 1.0:
             step.ended = True  # its last pose (joint space included) is sent this cycle
-        return "move", u, None
+        return phase, u, outcome
     if step.kind == "ride":
         return "ride", u, None  # its wheel carries it over the ground; the foot stays put
     # On the ground: the body carries the foot (stance, hold, a finished swing or move).
@@ -253,13 +270,9 @@ def advance(
         foot[0], foot[1] = x - vx * dt, y - vy * dt
     kind = "stance" if step.kind in ("swing", "stance") else "hold"
     if step.awaiting:
-        if contact:
-            return kind, u, step.judged(True)
-        if step.touchdown_due(t):
-            if step.searched >= step.search_depth:
-                return kind, u, step.judged(False)
-            step.searched += _lower(foot, step.search_speed * dt, step.search_depth - step.searched)
-            return "search", u, None
+        phase, outcome = _touchdown(step, foot, t, dt, contact, kind)
+        if phase == "search" or outcome is not None:
+            return phase, u, outcome
     elif (
         kind == "stance"
         and step.reach_depth > 0.0
@@ -279,6 +292,24 @@ def advance(
         foot[2] += to - step.balanced
         step.balanced = to
     return kind, u, None
+
+
+def _touchdown(
+    step: Step, foot: list[float], t: float, dt: float, contact: bool, phase: str
+) -> tuple[str, SwingOutcome | None]:
+    """A swing's touchdown still awaited: judged at a contact, else once due searched for
+    down at ``search_speed``, and judged with none at the full ``search_depth``. Returns
+    the phase (``phase``, or search while it searches) and the outcome if judged now."""
+    if contact:
+        return phase, step.judged(True)
+    if not step.touchdown_due(t):
+        return phase, None
+    if step.searched >= step.search_depth:
+        return phase, step.judged(False)
+    down = _lower(foot, step.search_speed * dt, step.search_depth - step.searched)
+    step.searched += down
+    step.sink += down  # a move's path is drawn again each cycle: it keeps the depth
+    return "search", None
 
 
 def _reach(step: Step, foot: list[float], t: float, dt: float, contact: bool) -> bool:
