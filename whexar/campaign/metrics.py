@@ -132,6 +132,7 @@ for _key, _unit, _text in (
     ("cost_of_transport", "", "E / (m g d) over the whole run, d the net progress"),
     ("min_stability_margin_m", "m", "least static stability margin while on the legs"),
     ("gait_changes", "", "gait changes the coordinator made"),
+    ("gait_selections", "", "gaits the gait selector chose (its first estimate included)"),
     ("falls", "", "times the body tilted past 60°"),
 ):
     metric(_key, _unit, _text)(_summary(_key))

@@ -3,7 +3,7 @@
 Theory of operation
 -------------------
 The campaign ``config/campaigns/reflexes.toml`` walks the robot with every
-shipped reflex running (``config/campaigns/reflexes/robot.toml``) through
+shipped reflex running (``config/reflexes.toml``) through
 each reflex's scenarios, over gaits and seeds (the robot's parts drawn from
 the seed), and through nominal walks with nothing to react to. The metrics
 here count what the reflexes did (:func:`activations`: a reflex's active

@@ -78,6 +78,7 @@ SUMMARY_KEYS: Final = (
     "cost_of_transport",
     "min_stability_margin_m",
     "gait_changes",
+    "gait_selections",
     "reflex_activations",
     "falls",
     "sim_seconds",

@@ -339,6 +339,7 @@ FIGURES: Final = {
     "cost_of_transport": ("cost of transport (over the progress)", "", "{:.2f}"),
     "min_stability_margin_m": ("minimum stability margin", "m", "{:.3f}"),
     "gait_changes": ("gait changes", "", "{}"),
+    "gait_selections": ("gait selector's choices", "", "{}"),
     "reflex_activations": ("reflex activations", "", "{}"),
     "falls": ("falls", "", "{}"),
     "sim_seconds": ("simulated time", "s", "{:.1f}"),

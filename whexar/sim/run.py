@@ -35,6 +35,7 @@ from whexar.actors.graph import robot_graph
 from whexar.actors.messages import (
     AccelImplausible,
     AccelPlausible,
+    GaitSelected,
     LocomotionChanged,
     MotionCommand,
     WorldFault,
@@ -233,6 +234,7 @@ class SimResult:
             else None,
             "min_stability_margin_m": min(margins) if margins else None,
             "gait_changes": sum(1 for c in changes if c.what == "gait"),
+            "gait_selections": sum(1 for e in self.events if isinstance(e, GaitSelected)),
             "reflex_activations": sum(len(v) for v in self.series.reflex_intervals().values()),
             "falls": falls,
             "sim_seconds": ran,
