@@ -44,9 +44,11 @@ def leg_state(
     contact: bool = True,
     confidence: float = 0.9,
     foot_error_m: float | None = None,
+    foot_z: float = 0.0,
 ) -> LegState:
     """Leg ``leg``'s state at ``t`` in ``phase``, its contact as its estimate says (the force
-    sensor's, believed ``confidence``), its foot ``foot_error_m`` from its goals' point."""
+    sensor's, believed ``confidence``), its foot ``foot_error_m`` from its goals' point and
+    planned at height ``foot_z``."""
     return LegState(
         t=t,
         source="leg",
@@ -54,7 +56,7 @@ def leg_state(
         cycle=0,
         phase=phase,
         progress=0.5,
-        foot=(0.0, 0.0, 0.0),
+        foot=(0.0, 0.0, foot_z),
         measured_foot=None,
         contact=contact,
         contact_source="fsr",

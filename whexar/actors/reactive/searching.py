@@ -38,7 +38,10 @@ the downward direction and eventually in other directions" (6.7.3). Here:
   finds nothing within the depth, it is stepped again where it should be,
   searching, in the ``around_gaits``; in the others the other feet hold the
   body and its next swing searches (the terrain estimator counts each loss as
-  a "disappeared support", 5.4, in every gait).
+  a "disappeared support", 5.4, in every gait). As for a swing, a foot that
+  finds the ground again less than ``found_m`` below where it stood found no
+  hole: the body rolled off it, and the reach gave it its load back — the
+  reflex is active once a reach goes deeper, or finds nothing.
 
 The early-contact stop of 6.7.3 is the leg's own adaptive swing.
 """
@@ -82,8 +85,10 @@ class SearchingParams(ReflexParams):
     confidence: float = Field(0.5, gt=0.0, lt=1.0)
     """A loss counts when the leg's contact estimate believes it at least this much."""
     found_m: float = Field(0.01, gt=0.0, le=0.1)
-    """Ground found this far below the expected is a hole (the flat's own is 0–9 mm: the
-    terrain estimator's 10 mm; 3 cm with the stance sharing its load, docs/reflexes.md)."""
+    """Ground found this far below the expected (a swing's), or below where a stance foot
+    stood (a reach's), is a hole (the flat's own is 0–9 mm: the terrain estimator's 10 mm;
+    3 cm with the stance sharing its load; on 30° 155 of 169 reaches found the ground
+    within 10 mm, docs/reflexes.md)."""
 
 
 class Searching(Reflex):
@@ -104,8 +109,10 @@ class Searching(Reflex):
         """Legs whose foot looks for ground now."""
         self.halted: set[int] = set()
         """Legs that found none: the body is held for them."""
-        self.reaching: set[int] = set()
-        """Stance legs reaching down for a support they lost."""
+        self.reaching: dict[int, float] = {}
+        """Stance legs reaching down for a support they lost: where each foot stood, m."""
+        self.holes: set[int] = set()
+        """… those that reached ``found_m`` or deeper: a hole (the reflex active)."""
         self.losses = StanceLoss(N_LEGS, cfg.contact.touchdown_s, self.params.confidence)
         self.gait = "tripod"
         """The gait the coordinator walks (its state)."""
@@ -181,13 +188,22 @@ class Searching(Reflex):
         if lost and msg.phase == "search" and self.reach > 0.0:
             # The leg reaches down while four or five feet hold the body; on three (the
             # tripod's) the walk rocks over the edge that took the support: stepped again.
-            self.active = True
-            self.reaching.add(i)
-            self.reason = f"{LEG_NAMES[i]} lost its support in stance: reaching down"
+            self.reaching[i] = msg.foot[2]
             return []
-        if i in self.reaching and msg.phase != "search":
-            self.reaching.discard(i)
+        if i in self.reaching:
+            depth = self.reaching[i] - msg.foot[2]
+            if msg.phase == "search":
+                if depth >= self.params.found_m and i not in self.holes:
+                    self.holes.add(i)
+                    self.active = True
+                    self.reason = f"{LEG_NAMES[i]} lost its support in stance: reaching down"
+                return []
+            del self.reaching[i]
+            self.holes.discard(i)
             if msg.contact or msg.phase != "stance":
+                if msg.contact and depth >= self.params.found_m:
+                    self.found_until = t + FOUND_S
+                    self.reason = f"{LEG_NAMES[i]} found ground {depth * 100:.0f} cm lower"
                 self._settle(t)  # found, or its swing came first: that swing searches
                 return []
             lost = True  # nothing within its reach
@@ -202,6 +218,6 @@ class Searching(Reflex):
         return [self.request(t, restep_leg=i, reason=self.reason)]
 
     def _settle(self, t: float) -> None:
-        if not (self.searching or self.halted or self.reaching) and self.found_until <= t:
+        if not (self.searching or self.halted or self.holes) and self.found_until <= t:
             self.active = False
             self.reason = ""
