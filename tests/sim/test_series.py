@@ -8,12 +8,18 @@ import math
 import numpy as np
 import pytest
 
-from whexar.actors.messages import JointGoals, LegState, LocomotionState, ServoStates
+from whexar.actors.messages import (
+    JointGoals,
+    LegState,
+    LocomotionState,
+    ReflexActivity,
+    ServoStates,
+)
 from whexar.campaign.metrics import Window, servo_currents
 from whexar.errors import UsageError
 from whexar.record import plots
 from whexar.sim.run import Sample, SimResult, progress, progress_along, simulate, travelled
-from whexar.sim.series import TRACED_JOINTS
+from whexar.sim.series import TRACED_JOINTS, RunSeries
 from whexar.testing.walk import command
 
 
@@ -96,3 +102,28 @@ def test_a_run_without_its_log_refuses_to_read_it() -> None:
         result.run.log.digest()
     assert result.series.cycles > 0
     assert set(result.summary()) >= {"progress_m", "progress_along_m", "distance_m"}
+
+
+def _activity(t: float, reflex: str, active: bool, inhibited: bool = False) -> ReflexActivity:
+    return ReflexActivity(t=t, source=reflex, reflex=reflex, active=active, inhibited=inhibited)
+
+
+def test_a_reflex_held_back_and_let_go_is_one_spell() -> None:
+    # On 30° the elevator's raise outlived eleven of stepping's spells; each hold and
+    # release counted as an activation of its own: 19 for 3 blocked swings.
+    series = RunSeries.of(
+        ("reflex-activity", m)
+        for m in [
+            _activity(1.0, "reflex-elevator", True),
+            _activity(2.0, "reflex-elevator", False, inhibited=True),
+            _activity(4.0, "reflex-elevator", True),
+            _activity(5.0, "reflex-elevator", False, inhibited=True),
+            _activity(7.0, "reflex-elevator", False),
+            # Held back while quiet, then let go still quiet: no spell.
+            _activity(8.0, "reflex-elevator", False, inhibited=True),
+            _activity(9.0, "reflex-elevator", False),
+            _activity(10.0, "reflex-elevator", True),
+            _activity(11.0, "reflex-elevator", False),
+        ]
+    )
+    assert series.reflex_intervals() == {"elevator": [(1.0, 7.0), (10.0, 11.0)]}

@@ -242,6 +242,10 @@ class RunSeries:
         self._reflexes.setdefault(name, [])
         if msg.active:
             self._reflex_from.setdefault(name, msg.t)
+        elif msg.inhibited:
+            # Held back by another reflex: what it asked stays in force, and it is handed
+            # nothing meanwhile, so active again when let go is the same spell going on.
+            pass
         elif name in self._reflex_from:
             self._reflexes[name].append((self._reflex_from.pop(name), msg.t))
 
@@ -290,7 +294,8 @@ class RunSeries:
         return [r for r in runs if r[2]]
 
     def reflex_intervals(self) -> dict[str, list[tuple[float, float]]]:
-        """By reflex (its name without ``reflex-``), the (start, end) times it was active;
+        """By reflex (its name without ``reflex-``), the (start, end) times it was active,
+        a spell going on while another reflex holds it back (its requests stay in force);
         one still active ends at the last coordinator state. A reflex that never acted
         has an empty list."""
         out = {name: list(found) for name, found in self._reflexes.items()}
