@@ -63,6 +63,25 @@ def test_nothing_found_steps_around_then_holds_the_body_until_ground_is_found() 
     assert not s.active
 
 
+def test_a_foot_that_finds_ground_only_when_stepped_around_has_no_foothold() -> None:
+    # At the 20 cm trench's edge the body tipped: a rear foot found the floor when stepped
+    # around, lost it at its next swing, and the count began again, 6 s a round, for good.
+    s = searching()
+    out: list[Command] = []
+    for t in (1.0, 3.0):
+        out += s.react(t, ended(t, "no_contact"))  # its gait's swing: nothing
+        out += s.react(t + 1.0, ended(t + 1.0, "completed"))  # stepped around: found
+    last = [*s.react(5.0, ended(5.0, "no_contact"))]
+    assert [r.restep_offset_m for r in requests(out)] == [(0.04, 0.0), (-0.04, 0.0)]
+    (halt,) = requests(last)
+    assert halt.halt is True  # the safe stop
+    # A swing of its gait that finds ground is a foothold: the count starts again.
+    s.react(6.0, ended(6.0, "completed"))
+    s.react(7.0, ended(7.0, "completed"))
+    (again,) = requests(s.react(8.0, ended(8.0, "no_contact")))
+    assert again.restep_offset_m == (0.04, 0.0)
+
+
 def test_a_loss_the_contact_estimate_does_not_believe_is_left_alone() -> None:
     s = searching()
     assert requests(s.react(1.0, ended(1.0, "no_contact", confidence=0.2))) == []

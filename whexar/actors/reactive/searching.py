@@ -146,7 +146,12 @@ class Searching(Reflex):
     def _swing(self, t: float, msg: SwingEnded) -> list[Command]:
         leg, p = msg.leg, self.params
         if msg.outcome != "no_contact":
-            self.tries[leg] = 0
+            if leg not in self.searching:
+                self.tries[leg] = 0  # a swing of the gait's found ground: a foothold
+            # A step around that found ground keeps its count: a foot that loses it again at
+            # its next swing has not found a foothold (at the 20 cm trench's edge the body
+            # tipped, a rear foot found the floor only when stepped around, and the walk went
+            # on and stopped, 6 s a round, for good).
             self.searching.discard(leg)
             out: list[Command] = []
             if leg in self.halted:
