@@ -380,23 +380,6 @@ def test_a_restep_halts_the_walk_steps_the_leg_and_the_walk_goes_on() -> None:
     assert speed[t0 + 7.9] == pytest.approx(0.1)
 
 
-def test_two_legs_asked_to_step_again_are_stepped_in_the_order_asked() -> None:
-    # RF snagged asks first; RR, dragged by it, asks while the walk winds down. One request
-    # at a time kept the last: RR was stepped, RF never.
-    t0 = T0
-    _, said = walked(
-        8.0,
-        {
-            t0 + 2.0: ask("reflex-stepping", restep_leg=0),
-            t0 + 2.2: ask("reflex-stepping", restep_leg=4),
-        },
-    )
-    done = [(m.leg, m.done) for m in said if isinstance(m, Restepped)]
-    assert done == [(0, True), (4, True)]
-    speed = {round(s.t, 2): s.twist[0] for s in states_of(said)}
-    assert speed[t0 + 7.9] == pytest.approx(0.1)  # and the walk goes on
-
-
 def lifted(said: list[Message], leg: int) -> list[float]:
     """When ``leg`` was told to lift its foot: a swing, or a move through the air."""
     return [

@@ -41,10 +41,8 @@ class Asks:
         """reflex → how far its stance feet reach down for ground they lost."""
         self.trochanters: dict[str, float] = {}
         """reflex → the trochanter angle it asks for (rad)."""
-        self.resteps: dict[int, ReflexRequest] = {}
-        """leg → the request to step it again, in the order asked, until the planner takes
-        it. One at a time replaced the last: a stepped RF snagged, then RR dragged by it,
-        and RR alone was stepped."""
+        self.restep: ReflexRequest | None = None
+        """The request to step a leg again, until the planner takes it."""
 
     def take(self, req: ReflexRequest) -> bool:
         """Merge one request; True if it asks to sit down for the first time."""
@@ -90,21 +88,11 @@ class Asks:
             else:
                 self.trochanters.pop(who, None)
         if req.restep_leg is not None:
-            self.resteps[req.restep_leg] = req
+            self.restep = req
         if req.sit_down and self.sit is None:
             self.sit = (who, req.reason)
             return True
         return False
-
-    @property
-    def restep(self) -> ReflexRequest | None:
-        """The first request to step a leg again not yet taken (None: none)."""
-        return next(iter(self.resteps.values()), None)
-
-    def took_restep(self) -> None:
-        """The planner took (or refused) the first request to step a leg again."""
-        if self.resteps:
-            del self.resteps[next(iter(self.resteps))]
 
     def twist(self, wanted: Vec3) -> Vec3:
         """The twist to move toward: ``wanted`` halted or its turn corrected."""

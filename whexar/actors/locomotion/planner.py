@@ -255,7 +255,7 @@ class LocomotionPlanner(WalkOnLosses):
         if restep is not None and (
             self.mode != "walk" or self.upside_down or not 0 <= leg < N_LEGS
         ):
-            self.asks.took_restep()  # on the wheels, on its back, or no such leg: no step
+            self.asks.restep = None  # on the wheels, on its back, or no such leg: no step
             why = "riding: the legs stand on their wheels" if self.mode != "walk" else "flipped"
             if not 0 <= leg < N_LEGS:
                 why = f"no leg {leg}: legs are 0…{N_LEGS - 1}"
@@ -280,7 +280,7 @@ class LocomotionPlanner(WalkOnLosses):
             return None
         self.winding_down = False
         if restep is not None:
-            self.asks.took_restep()
+            self.asks.restep = None
             return self.restep(restep)
         if w.upside_down != self.upside_down:
             self.steer = False
