@@ -97,6 +97,12 @@ class PlannerCore:
         """The same, off the grid (the settling stance's errors are millimetres)."""
         self.awaited_since: list[float | None] = [None] * N_LEGS
         """Since when each leg's touchdown is awaited (``LegState.touchdown_pending``)."""
+        contact = cfg.contact
+        self.touchdown_wait_s = (
+            contact.touchdown_s + loco.max_step_height_mm / 1000 / contact.search_speed_m_s
+        )
+        """The longest a touchdown is waited for: its wait and a search as deep as the
+        highest step (a leg that says it awaits one for longer is not waited for)."""
         self.settle_t = -math.inf
         self.wheel_measured: list[float | None] = [None] * N_LEGS
         self.direction_measured: list[float | None] = [None] * N_LEGS

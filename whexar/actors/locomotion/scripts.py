@@ -78,12 +78,9 @@ class Scripts(PlannerCore):
     def awaiting(self, legs: list[int]) -> bool:
         """Whether one of ``legs`` awaits its touchdown's judgement: a foot lifted then
         would be judged in the air (``no_contact``), its search for the ground cut off. A
-        leg that says so for longer than a touchdown's wait and a search as deep as the
-        highest step is not waited for."""
-        contact = self.cfg.contact
-        bound = contact.touchdown_s + self.loco.max_step_height_mm / 1000 / contact.search_speed_m_s
+        leg that says so for longer than ``touchdown_wait_s`` is not waited for."""
         return any(
-            since is not None and self.t - since < bound
+            since is not None and self.t - since < self.touchdown_wait_s
             for since in (self.awaited_since[i] for i in legs)
         )
 

@@ -158,7 +158,6 @@ class Step:
         its outcome is judged against the swing's ground."""
         self.awaiting = True
         self.due_t = swing.due()
-        self.touchdown_s = swing.touchdown_s
         self.search_depth, self.search_speed = swing.search_depth, swing.search_speed
         self.searched = swing.searched
         self.ground_z = swing.ground()
