@@ -94,6 +94,31 @@ def test_a_ramp_is_a_slope_and_flat_ground_is_clear() -> None:
     assert profile(flat, min_height=0.05, tolerance=0.02, max_face_deg=50).kind == "clear"
 
 
+def test_a_rise_whose_foot_no_ray_saw_is_measured_from_where_the_front_feet_stand() -> None:
+    # The robot rode to a 15° ramp's foot, which lies under its sensors; the ramp levels
+    # off 10 cm up. Every ray meets it within the top's tolerance: no face seen. Its face
+    # runs from the front feet's ground, not straight up.
+    rise, top = math.radians(15), 0.1
+    points = []
+    for a in range(18, 31, 2):
+        d = math.radians(a)
+        x = H / (math.tan(d) + math.tan(rise))  # on the ramp, from 0 m along the rays
+        if x * math.tan(rise) > top:
+            x = (H - top) / math.tan(d)  # on its plateau
+        points.append(ray_point(x / math.cos(d), d, H))
+    assert all(z >= top - 0.02 for _, z in points)
+    unseen = profile(points, min_height=0.05, tolerance=0.02, max_face_deg=50)
+    assert unseen.kind == "obstacle"  # nothing known about the ground before it
+    seen = profile(points, min_height=0.05, tolerance=0.02, max_face_deg=50, ground=0.08)
+    assert seen.kind == "slope"
+    # A wall as near is still an obstacle: its face rises steeply from the feet.
+    wall = World(0.25, 0.6, 0.4)
+    near = [ray_point(wall.range(math.radians(a)), math.radians(a), H) for a in range(18, 31, 2)]
+    assert profile(near, min_height=0.05, tolerance=0.02, max_face_deg=50, ground=0.08).kind == (
+        "obstacle"
+    )
+
+
 class Drive:
     """The coordinator and the world around one reflex: the trochanter angle it asks is
     the one every ray then has; the body goes forward at ``vx`` unless halted or blocked."""

@@ -41,7 +41,10 @@ navigation's work (4.2.3). Here:
   lies behind it (:func:`profile`). Its height is its highest point, its front
   the nearest risen point, its depth how far its top runs. A rise whose face is
   gentler than ``max_face_deg`` is a slope (the rangefinders see ramps too):
-  nothing to do.
+  nothing to do. Where no ray met the ground before the rise — the robot rode to
+  a ramp whose foot lies under its sensors — the face runs from where the front
+  feet stand: every ray met the 15° ramp 10 cm up, and a face taken as straight
+  up made it an obstacle a hair over ``climb_m``, kept off for good.
 * **Climb** an obstacle at most ``climb_m`` high whose top the sweep saw: the
   walk goes on with the step at least its height and ``clearance_m`` (a
   ``ReflexRequest.step_height_m``; the coordinator keeps it within
@@ -177,13 +180,16 @@ def profile(
     tolerance: float,
     max_face_deg: float,
     origin: float = math.inf,
+    ground: float = math.inf,
 ) -> Profile:
     """Sort a sweep's points (:func:`ray_point`; ``x`` infinite: the ray met nothing)
     into clear ground, a slope or an obstacle (module docstring). An obstacle's height is
     the median of its top's points: the sensor's noise spreads them over ``tolerance``.
     Given the rays' ``origin`` height, its back edge is placed between the last point on
     its top and the next ray's crossing of the top's height (a sweep's steps are coarse
-    where the rays graze the top)."""
+    where the rays graze the top). Where no ray met the ground before the rise (the
+    robot stands at its foot), its face runs from ``ground``, m along the rays: where
+    the front feet stand, the last ground known."""
     risen = [p for p in points if math.isfinite(p[0]) and p[1] >= min_height]
     if not risen:
         return Profile("clear")
@@ -194,7 +200,15 @@ def profile(
     lowest = min(risen, key=lambda p: (p[1], p[0]))
     if lowest[0] >= first[0] or lowest == first:
         before = [p for p in points if p[0] < front and p[1] < min_height]
-        lowest = max(before) if before else (first[0], 0.0)
+        # No ground seen before it: its points rising straight up are its face (a wall's),
+        # else it rises from the front feet's ground at the furthest.
+        under = [p for p in risen if p[0] <= first[0] + 1e-3 and p[1] < first[1]]
+        if before:
+            lowest = max(before)
+        elif under:
+            lowest = min(under, key=lambda p: p[1])
+        else:
+            lowest = (min(ground, first[0]), 0.0)
     run = first[0] - lowest[0]
     face = 90.0 if run <= 1e-3 else math.degrees(math.atan2(first[1] - lowest[1], run))
     if face < max_face_deg:
@@ -237,6 +251,9 @@ class ObstacleReflex(Reflex):
         chain = fk_chain(np.zeros(5), cfg.leg_geometry())
         self.femur_dz = float(chain[1, 2])
         """The femur joint (the sensors' axis) above the coxa joint, m (eq. 4.4–4.6)."""
+        self.femur_reach = float(math.hypot(chain[1, 0], chain[1, 1]))
+        """… and out from it, m: where the rays start along the leg."""
+        self.mounts = {i: cfg.legs[i].mount_mm for i in FRONT_LEGS}
         self.phase: Literal["watching", "stopping", "scanning", "climbing", "blocked"] = "watching"
         self.odometer = 0.0
         """How far the body has gone forward, m (the coordinator's twist, integrated)."""
@@ -264,14 +281,20 @@ class ObstacleReflex(Reflex):
         """Leg → its stance foot's height in the body frame, m (its latest)."""
         self.foot_x: dict[int, float] = {}
         """… and how far forward it stands, m."""
+        self.foot_along: dict[int, float] = {}
+        """Front leg → how far along the rays its stance foot stands from the sensor, m."""
 
     # ------------------------------------------------------------------ inputs
 
     def react(self, t: float, msg: Message) -> Iterable[Command]:
         if isinstance(msg, LegState):
             if msg.contact and msg.measured_foot is not None:
-                self.foot_z[msg.leg] = msg.measured_foot[2]
-                self.foot_x[msg.leg] = msg.measured_foot[0]
+                x, y, z = msg.measured_foot
+                self.foot_z[msg.leg], self.foot_x[msg.leg] = z, x
+                if msg.leg in self.mounts:
+                    mx, my, _ = self.mounts[msg.leg]
+                    reach = math.hypot(x - mx / 1000, y - my / 1000)
+                    self.foot_along[msg.leg] = reach - self.femur_reach
             return ()
         if isinstance(msg, BodyMotion):
             self.trochanter = msg.trochanter_rad
@@ -433,6 +456,7 @@ class ObstacleReflex(Reflex):
             tolerance=p.tolerance_m,
             max_face_deg=p.max_face_deg,
             origin=self.height(),
+            ground=min(self.foot_along.values(), default=math.inf),
         )
         yaw = math.radians(self._yaw())
         ahead = seen.front * math.cos(yaw) if math.isfinite(seen.front) else 0.0
