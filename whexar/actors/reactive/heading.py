@@ -20,14 +20,12 @@ pull is held with no error left), bounded, the integral held while at the bound.
   (``bias_tau_s``); it corrects nothing until it has learnt for ``learn_s``.
   Learnt through the obstacle's sweep, the level was 0.47 dps off: the default
   course veered 37° in 75 s with the heading believed held (docs/reflexes.md).
-* **The error** is the turn the gyroscope reads less the turn the coordinator
-  commands (an operator's turn, on the spot or walking, is followed). It
-  starts from zero when the robot is on its legs (stood up, or flipped): the
-  heading to hold is the one it set off with, kept through every halt and
-  re-placing on the way, and what the body turns meanwhile counts. It is
-  corrected while the body translates (walking, riding, the hybrid gait with
-  a linear speed). Started afresh at each start, and blind while halted, it
-  missed 5° of turn in one re-placing on 30° (docs/reflexes.md).
+* **The error** integrates only while the body translates (walking, riding,
+  the hybrid gait with a linear speed): turning on the spot is the operator's.
+  It starts from zero at each start: the heading to hold is the one the robot
+  had when it set off. (Kept through halts, with what the body turned
+  meanwhile counted, the corrections after each halt cost the sill, the box
+  and the trench a seed each in the reflex campaign: docs/reflexes.md.)
 * **The reference** is the commanded turn rate less this reflex's own
   correction (the coordinator's state carries both), so that an operator's
   turn is followed, not fought.
@@ -51,13 +49,14 @@ from whexar.runtime.messages import Message
 
 Axis = Literal["x", "y", "z", "-x", "-y", "-z"]
 MOVING = frozenset({"walking", "riding", "hybrid"})
-OFF_LEGS = frozenset({"standing_up", "sitting_down", "seated", "flipping"})
-"""The activities in which the heading to hold is forgotten: the robot is not on its legs."""
 STILL = frozenset({"standing", "seated"})
 """The activities in which the body may stand still: the gyroscope's level is learnt."""
-MOVED_M = 1e-4
-MOVED_RAD = 1e-4
-"""A change of the body's pose or trochanter angle above these is a motion (m, rad)."""
+MOVED_M = 1e-3
+MOVED_RAD = math.radians(0.25)
+"""A jump of the body's pose or trochanter angle from one of the coordinator's cycles to
+the next above these is a motion (m, rad): the obstacle reflex's sweep steps 2° at once.
+Standing on 30°, the trochanter follows the filtered pitch by 0.02° a cycle (2°/s while
+it settles): no motion, else the level would never be learnt there."""
 STILL_M_S = 1e-3
 """A commanded linear speed below this is no translation."""
 
@@ -110,12 +109,10 @@ class HeadingHold(Reflex):
         self.translating = False
         self.still = False
         """The coordinator stands or sits, commanding no motion."""
-        self.on_legs = False
-        """The robot stands on its legs (not standing up, sitting or flipping)."""
         self.posed: tuple[float, ...] | None = None
-        """The body's pose and trochanter angle last commanded."""
+        """The body's pose and trochanter angle in the coordinator's last cycle."""
         self.moved_t = -math.inf
-        """When they last changed, s."""
+        """When they last jumped, s."""
         self.reference_rad_s = 0.0
         """The operator's commanded turn rate (the coordinator's, less this correction)."""
         self.sent = 0.0
@@ -141,16 +138,12 @@ class HeadingHold(Reflex):
     def _state(self, t: float, s: LocomotionState) -> Iterable[Command]:
         vx, vy, w = s.twist
         moving = s.activity in MOVING and math.hypot(vx, vy) > STILL_M_S
-        # The coordinator turns a translating body only by the correction: else its turn
-        # is the operator's alone.
-        self.reference_rad_s = w - self.sent if moving else w
+        self.reference_rad_s = w - self.sent
         self.still = s.activity in STILL and not (vx or vy or w)
-        self.on_legs = s.activity not in OFF_LEGS
-        if not self.on_legs:
-            self.error_rad = self.integral = 0.0  # the heading to hold: the one it sets off with
         if moving == self.translating:
             return ()
         self.translating = moving
+        self.error_rad = self.integral = 0.0  # the heading to hold: the one it sets off with
         if moving or self.sent == 0.0:
             return ()
         self.sent = 0.0
@@ -162,17 +155,17 @@ class HeadingHold(Reflex):
         self.last_t = t
         rate_dps = self.sign * m.gyro_dps[self.axis]
         p = self.params
-        if self.still and t - self.moved_t >= p.settle_s and dt > 0.0:  # learn the level
-            self.learnt_s += dt
-            # The mean of what it read, then a low-pass: not the first reading's noise.
-            k = min(1.0, dt / min(p.bias_tau_s, self.learnt_s))
-            self.bias_dps += (rate_dps - self.bias_dps) * k
-        if not self.on_legs or self.learnt_s < p.learn_s:
+        if not self.translating:
+            if self.still and t - self.moved_t >= p.settle_s and dt > 0.0:  # learn the level
+                self.learnt_s += dt
+                # The mean of what it read, then a low-pass: not the first reading's noise.
+                k = min(1.0, dt / min(p.bias_tau_s, self.learnt_s))
+                self.bias_dps += (rate_dps - self.bias_dps) * k
+            return ()
+        if self.learnt_s < p.learn_s:
             return ()
         rate = math.radians(rate_dps - self.bias_dps)
         self.error_rad += (rate - self.reference_rad_s) * dt
-        if not self.translating:
-            return ()  # halted: not turned by a correction, nor its integral wound up
         integral = self.integral + self.error_rad * dt
         free = -(p.gain_per_s * self.error_rad + p.integral_per_s2 * integral)
         want = max(-p.max_rad_s, min(p.max_rad_s, free))
