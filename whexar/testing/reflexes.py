@@ -1,14 +1,14 @@
 """Helpers for testing a reflex's policy directly: the messages it reads, made short.
 
 A reflex's policy is a plain class (:class:`~whexar.actors.reactive.Reflex`); its test
-makes it and calls ``react`` with the messages of its inputs. The coordinator's state and
-a leg's are the ones with many fields: :func:`locomotion_state` and :func:`leg_state`
-fill them in.
+makes it and calls ``react`` with the messages of its inputs. The coordinator's state, its
+body motion and a leg's state are the ones with many fields: :func:`locomotion_state`,
+:func:`body_motion` and :func:`leg_state` fill them in.
 """
 
 from __future__ import annotations
 
-from whexar.actors.messages import LegState, LocomotionState, Vec3
+from whexar.actors.messages import BodyMotion, LegState, LocomotionState, Vec3
 
 
 def locomotion_state(
@@ -32,6 +32,20 @@ def locomotion_state(
         gait_phase=0.0,
         swing_legs=(),
         margin_m=0.1,
+        upside_down=False,
+    )
+
+
+def body_motion(t: float, trochanter_rad: float = 0.0) -> BodyMotion:
+    """The coordinator's body motion at ``t``: the body still in its neutral pose, every
+    trochanter at ``trochanter_rad``."""
+    return BodyMotion(
+        t=t,
+        source="coordinator",
+        cycle=0,
+        twist=(0.0, 0.0, 0.0),
+        pose=(0.0,) * 6,
+        trochanter_rad=trochanter_rad,
         upside_down=False,
     )
 

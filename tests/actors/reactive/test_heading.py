@@ -7,11 +7,11 @@ import math
 
 import pytest
 
-from whexar.actors.messages import BodyMotion, ImuSample, LocomotionState, ReflexRequest
+from whexar.actors.messages import ImuSample, LocomotionState, ReflexRequest
 from whexar.actors.reactive import check_params
 from whexar.actors.reactive.heading import HeadingHold
 from whexar.config import RobotConfig
-from whexar.testing.reflexes import locomotion_state
+from whexar.testing.reflexes import body_motion, locomotion_state
 
 DT = 0.02  # the IMU at 50 Hz
 
@@ -99,18 +99,6 @@ def test_the_level_is_learnt_standing_still_not_while_standing_up_or_placing_fee
     assert h.learnt_s == pytest.approx(0.6, abs=DT)
 
 
-def motion(t: float, trochanter_rad: float) -> BodyMotion:
-    return BodyMotion(
-        t=t,
-        source="coordinator",
-        cycle=round(t / DT),
-        twist=(0.0, 0.0, 0.0),
-        pose=(0.0,) * 6,
-        trochanter_rad=trochanter_rad,
-        upside_down=False,
-    )
-
-
 def test_the_level_is_not_learnt_while_a_reflex_sways_the_body() -> None:
     # The obstacle reflex's sweep turns the trochanters while the robot stands: the body
     # sways, the gyroscope reads it. Learnt then, the level was 0.47 dps off: the default
@@ -118,20 +106,20 @@ def test_the_level_is_not_learnt_while_a_reflex_sways_the_body() -> None:
     h = hold()
     for k in range(round(2.0 / DT)):  # standing still
         t = k * DT
-        h.react(t, motion(t, 0.0))
+        h.react(t, body_motion(t, 0.0))
         h.react(t, state(t, "standing"))
         h.react(t, sample(t, 25.0))
     step = math.radians(2.0)
     for k in range(round(4.0 / DT)):  # the sweep: the trochanters step 2° every 0.3 s
         t = 2.0 + k * DT
-        h.react(t, motion(t, step * (k // 15 + 1)))
+        h.react(t, body_motion(t, step * (k // 15 + 1)))
         h.react(t, state(t, "standing"))
         h.react(t, sample(t, 25.0 - 0.5))
     assert h.bias_dps == pytest.approx(25.0)
     learnt = h.learnt_s
     for k in range(round(1.0 / DT)):  # still again: learnt once the body has settled,
         t = 6.0 + k * DT  # the trochanters creeping as they follow a slope's pitch
-        h.react(t, motion(t, step * 13 + math.radians(0.02) * k))
+        h.react(t, body_motion(t, step * 13 + math.radians(0.02) * k))
         h.react(t, state(t, "standing"))
         h.react(t, sample(t, 25.0))
     assert h.learnt_s == pytest.approx(learnt + 0.5, abs=2 * DT)

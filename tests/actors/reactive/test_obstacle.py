@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import pytest
 
 from whexar.actors.locomotion.asks import Asks
-from whexar.actors.messages import BodyMotion, ObstacleRanges, ReflexRequest
+from whexar.actors.messages import ObstacleRanges, ReflexRequest
 from whexar.actors.reactive import check_params
 from whexar.actors.reactive.obstacle import (
     RAY_DOWN_PER_TROCHANTER,
@@ -19,7 +19,7 @@ from whexar.actors.reactive.obstacle import (
     ray_point,
 )
 from whexar.config import RobotConfig
-from whexar.testing.reflexes import locomotion_state
+from whexar.testing.reflexes import body_motion, locomotion_state
 
 CFG = RobotConfig()
 H = CFG.stances["default"].height_mm / 1000  # the rays' height: the coxa joints'
@@ -136,7 +136,7 @@ class Drive:
             activity = "walking" if any(twist) else "standing"
             troch = self.asks.trochanter() or 0.0
             self._take(self.r.react(self.t, locomotion_state(self.t, activity, twist=twist)))
-            self._take(self.r.react(self.t, self._motion(troch)))
+            self._take(self.r.react(self.t, body_motion(self.t, troch)))
             down = self.r.mount + RAY_DOWN_PER_TROCHANTER * troch
             r = self.world.range(down)
             self._take(
@@ -150,17 +150,6 @@ class Drive:
             # The body moves toward the box (the rays' distances shrink with it).
             self.world.near -= twist[0] * DT
             self.world.far -= twist[0] * DT
-
-    def _motion(self, troch: float) -> BodyMotion:
-        return BodyMotion(
-            t=self.t,
-            source="coordinator",
-            cycle=0,
-            twist=(0.0, 0.0, 0.0),
-            pose=(0.0,) * 6,
-            trochanter_rad=troch,
-            upside_down=False,
-        )
 
     def _take(self, commands: object) -> None:
         for c in commands:  # type: ignore[attr-defined]
