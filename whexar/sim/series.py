@@ -242,11 +242,9 @@ class RunSeries:
         self._reflexes.setdefault(name, [])
         if msg.active:
             self._reflex_from.setdefault(name, msg.t)
-        elif msg.inhibited:
-            # Held back by another reflex: what it asked stays in force, and it is handed
-            # nothing meanwhile, so active again when let go is the same spell going on.
-            pass
-        elif name in self._reflex_from:
+        # Held back by another reflex (inhibited), what it asked stays in force and it is
+        # handed nothing meanwhile: active again when let go is the same spell going on.
+        elif not msg.inhibited and name in self._reflex_from:
             self._reflexes[name].append((self._reflex_from.pop(name), msg.t))
 
     def _joint_goals(self, msg: JointGoals) -> None:

@@ -253,7 +253,10 @@ class ObstacleReflex(Reflex):
         """The femur joint (the sensors' axis) above the coxa joint, m (eq. 4.4–4.6)."""
         self.femur_reach = float(math.hypot(chain[1, 0], chain[1, 1]))
         """… and out from it, m: where the rays start along the leg."""
-        self.mounts = {i: cfg.legs[i].mount_mm for i in FRONT_LEGS}
+        self.mounts = {
+            i: (cfg.legs[i].mount_mm[0] / 1000, cfg.legs[i].mount_mm[1] / 1000) for i in FRONT_LEGS
+        }
+        """Front leg → its coxa joint's (x, y) in the body frame, m."""
         self.phase: Literal["watching", "stopping", "scanning", "climbing", "blocked"] = "watching"
         self.odometer = 0.0
         """How far the body has gone forward, m (the coordinator's twist, integrated)."""
@@ -292,8 +295,8 @@ class ObstacleReflex(Reflex):
                 x, y, z = msg.measured_foot
                 self.foot_z[msg.leg], self.foot_x[msg.leg] = z, x
                 if msg.leg in self.mounts:
-                    mx, my, _ = self.mounts[msg.leg]
-                    reach = math.hypot(x - mx / 1000, y - my / 1000)
+                    mx, my = self.mounts[msg.leg]
+                    reach = math.hypot(x - mx, y - my)
                     self.foot_along[msg.leg] = reach - self.femur_reach
             return ()
         if isinstance(msg, BodyMotion):
