@@ -197,18 +197,26 @@ def swing_ends(out: list[Message]) -> list[SwingEnded]:
 
 
 def swing(
-    leg: LegController, angles: list[float], amps: Callable[[float, float], float]
+    leg: LegController,
+    angles: list[float],
+    amps: Callable[[float, float], float],
+    follow: Callable[[float], bool] | None = None,
 ) -> list[Message]:
     """A 0.5 s swing from 1.1 s, run to 1.9 s; the femur draws ``amps(u, foot z)`` at the
-    swing's phase u and the foot's height of the cycle before."""
+    swing's phase u and the foot's height of the cycle before. The servos reach each goal
+    by the next cycle while ``follow(u)`` (never without it)."""
     cmd = step("swing", 1.1, 0.5, swing_target(), height_m=0.04)
     out: list[Message] = []
     t = 1.1
     while t < 1.9:
         assert leg.foot is not None
-        current = amps((t - 1.1) / 0.5, leg.foot[2])
+        u = (t - 1.1) / 0.5
+        current = amps(u, leg.foot[2])
         steps = (cmd,) if t == 1.1 else ()
-        out.extend(leg.cycle(t, states(t, angles, femur_a=current), steps=steps))
+        said = leg.cycle(t, states(t, angles, femur_a=current), steps=steps)
+        out.extend(said)
+        if follow is not None and follow(u):
+            follow_goals(angles, said)
         t = round(t + DT, 9)
     return out
 
@@ -339,12 +347,46 @@ def test_a_contact_that_lags_the_swing_end_still_completes_it() -> None:
 def test_a_swing_stopped_on_the_way_down_ends_early_and_the_stance_stays_there() -> None:
     leg, angles = placed()
     ground = NEUTRAL[2] + 0.02  # 2 cm above the floor: met past the apex, coming down
-    out = swing(leg, angles, lambda u, z: LOADED_A if u > 0.5 and z <= ground else 0.0)
+    out = swing(
+        leg, angles, lambda u, z: LOADED_A if u > 0.5 and z <= ground else 0.0, lambda u: True
+    )
     (ended,) = swing_ends(out)
     assert ended.outcome == "early_contact"
     assert 0.0 < ended.ground_offset_m <= 0.025
     assert leg.foot is not None
     assert leg.foot[2] == pytest.approx(NEUTRAL[2] + ended.ground_offset_m)
+
+
+def test_a_swing_stopped_by_an_edge_stands_where_its_foot_stopped() -> None:
+    leg, angles = placed()
+    # The foot meets a face at 80 % of the swing and stays there; its goal runs on, and
+    # the contact comes (the force sensor's lag) a tenth of the swing later.
+    out = swing(leg, angles, lambda u, z: LOADED_A if u >= 0.9 else 0.0, lambda u: u < 0.8 - 1e-9)
+    (ended,) = swing_ends(out)
+    assert ended.outcome == "early_contact"
+    stopped = leg.frame.from_leg(fk_point(angles, GEOMETRY))
+    assert stopped[0] < swing_target()[0] - 0.005  # short of the target: the face held it
+    # The stance starts where the foot stands across the ground, not where its goal had
+    # gone on to, so the leg does not push into the face; up and down it keeps its goal.
+    assert leg.foot is not None
+    assert leg.foot[:2] == pytest.approx(stopped[:2], abs=1e-6)
+    assert leg.foot[2] < stopped[2]
+    run(leg, 1.9, 2.0, angles, follow=False)
+    on_the_wire = leg.frame.from_leg(fk_point(leg.sent[:5], GEOMETRY))
+    assert on_the_wire[:2] == pytest.approx(stopped[:2], abs=1e-3)
+
+
+def test_a_swing_that_never_lifted_its_foot_keeps_its_goal_when_it_stops_early() -> None:
+    leg, angles = placed()
+    # The foot never leaves its ground (a loaded leg that cannot lift): contact on the way
+    # up, then again past the apex. Its stance goes on from its goal: no edge stopped it.
+    out = swing(
+        leg, angles, lambda u, z: LOADED_A if 0.1 < u < 0.3 or u >= 0.6 else 0.0, lambda u: False
+    )
+    assert [e.outcome for e in swing_ends(out)] == ["blocked", "early_contact"]
+    stood = leg.frame.from_leg(fk_point(angles, GEOMETRY))
+    assert leg.foot is not None
+    assert leg.foot[0] > stood[0] + 0.02
 
 
 def test_contact_on_the_way_up_is_blocked_once_and_the_swing_goes_on() -> None:
