@@ -5,7 +5,7 @@ trochanter sweep, then climbed with a higher step or kept off until the way is c
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import pytest
 
@@ -19,7 +19,7 @@ from whexar.actors.reactive.obstacle import (
     ray_point,
 )
 from whexar.config import RobotConfig
-from whexar.testing.reflexes import body_motion, locomotion_state
+from whexar.testing.reflexes import body_motion, leg_state, locomotion_state
 
 CFG = RobotConfig()
 H = CFG.stances["default"].height_mm / 1000  # the rays' height: the coxa joints'
@@ -182,6 +182,23 @@ def test_a_low_box_stops_the_walk_is_measured_then_climbed_with_a_higher_step() 
     d.run(20.0)  # 2 m at 0.1 m/s: past the box and the body's length
     assert d.said[-1].step_height_m == 0.0
     assert not r.active
+
+
+def test_a_box_whose_face_no_ray_saw_is_climbed_not_taken_for_a_slope() -> None:
+    # The walk stops late (a gait's swings land first) with the box's face nearer than any
+    # ray reaches: every ray meets its top 9 cm up, the front feet stand 8 cm along the
+    # rays, 7 cm before the face. A face run from the feet (20°) would make it a slope.
+    r = reflex()
+    for leg, (mx, my) in r.mounts.items():
+        foot = (mx + r.femur_reach + 0.08, my, -H)
+        r.react(0.0, replace(leg_state(0.0, leg, "stance"), measured_foot=foot))
+    d = Drive(r, World(0.2, 0.65, 0.09))
+    d.run(10.0)
+    assert r.seen is not None
+    assert not r.seen.face_seen
+    assert (r.seen.kind, r.phase) == ("obstacle", "climbing")
+    (climb,) = [q for q in d.said if q.step_height_m]
+    assert climb.step_height_m == pytest.approx(0.09 + 0.03, abs=0.01)
 
 
 def test_a_wall_stops_the_robot_until_the_operator_steers_clear() -> None:

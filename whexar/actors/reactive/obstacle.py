@@ -67,7 +67,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 from typing import Literal
 
 import numpy as np
@@ -153,7 +154,9 @@ class Profile:
     """What a sweep saw (:func:`profile`): ``kind``; for an obstacle its ``front`` (m
     along the ray), ``height`` and ``depth`` (m), whether a ray passed over its top
     (``top_seen``: else the height is a lower bound) and beyond its back (``back_seen``:
-    else the depth is); for a slope its ``face_deg``."""
+    else the depth is); for a slope its ``face_deg``; whether a ray saw the rise's face
+    (``face_seen``: ground before it, or its own points rising straight up; else its face
+    ran from the front feet's ground)."""
 
     kind: Kind
     front: float = math.inf
@@ -162,6 +165,7 @@ class Profile:
     top_seen: bool = False
     back_seen: bool = False
     face_deg: float = 90.0
+    face_seen: bool = True
 
 
 def ray_point(distance: float, down_rad: float, height: float) -> tuple[float, float]:
@@ -198,21 +202,23 @@ def profile(
     tops = [p for p in risen if p[1] >= top - tolerance]
     first = min(tops)
     lowest = min(risen, key=lambda p: (p[1], p[0]))
+    face_seen = True
     if lowest[0] >= first[0] or lowest == first:
         before = [p for p in points if p[0] < front and p[1] < min_height]
         # No ground seen before it: its points rising straight up are its face (a wall's),
         # else it rises from the front feet's ground at the furthest.
-        under = [p for p in risen if p[0] <= first[0] + 1e-3 and p[1] < first[1]]
+        under = [p for p in risen if p[0] <= first[0] + 1e-3 and p[1] < first[1] - tolerance]
         if before:
             lowest = max(before)
         elif under:
             lowest = min(under, key=lambda p: p[1])
         else:
             lowest = (min(ground, first[0]), 0.0)
+            face_seen = not math.isfinite(ground)
     run = first[0] - lowest[0]
     face = 90.0 if run <= 1e-3 else math.degrees(math.atan2(first[1] - lowest[1], run))
     if face < max_face_deg:
-        return Profile("slope", front=front, height=top, face_deg=face)
+        return Profile("slope", front=front, height=top, face_deg=face, face_seen=face_seen)
     height = float(np.median([z for _, z in tops]))
     back = max(x for x, _ in tops)
     beyond = [p for p in points if p[0] > first[0] + tolerance and p[1] < top - tolerance]
@@ -230,6 +236,7 @@ def profile(
         top_seen=bool(beyond),
         back_seen=bool(passed),
         face_deg=face,
+        face_seen=face_seen,
     )
 
 
@@ -453,14 +460,23 @@ class ObstacleReflex(Reflex):
 
     def _decide(self, t: float) -> Iterable[Command]:
         p = self.params
-        seen = self.seen = profile(
+        sort = partial(
+            profile,
             self.points,
             min_height=p.min_height_m,
             tolerance=p.tolerance_m,
             max_face_deg=p.max_face_deg,
             origin=self.height(),
-            ground=min(self.foot_along.values(), default=math.inf),
         )
+        seen = sort(ground=min(self.foot_along.values(), default=math.inf))
+        if seen.kind == "slope" and not seen.face_seen:
+            # No ray saw its face: a ramp whose foot is under the sensors, or a step as near.
+            # A step low enough to climb is climbed (a high step costs a ramp nothing); a
+            # higher one, kept off for good, would strand the robot at a ramp.
+            upright = sort()
+            if upright.kind == "obstacle" and upright.top_seen and upright.height <= p.climb_m:
+                seen = replace(upright, face_seen=False)  # its face taken upright
+        self.seen = seen
         yaw = math.radians(self._yaw())
         ahead = seen.front * math.cos(yaw) if math.isfinite(seen.front) else 0.0
         if seen.kind != "obstacle":
