@@ -1,8 +1,9 @@
 """The elevator reflex in the simulated world: a tripod walk at the default 6 cm step into
-the 6 cm sill of the obstacles terrain stops there for good; with the elevator its
-blocked swings raise the step and it walks on over the sill. A light sill of the same
-size (0.3 kg) is pushed away by the feet it meets: the elevator does not fire, as the
-thesis's did not on light obstacles (6.7.2)."""
+an 8 cm sill, higher than the step, stops there for good; with the elevator its blocked
+swings raise the step and it walks on over the sill. A light 6 cm sill (0.3 kg) is pushed
+away by the feet it meets: the elevator does not fire, as the thesis's did not on light
+obstacles (6.7.2). (A fixed 6 cm sill the tripod climbs without the elevator: its feet
+stand on the sill's edge where they stop.)"""
 
 from __future__ import annotations
 
@@ -16,17 +17,20 @@ from whexar.sim.scenario import parse_scenario
 pytestmark = pytest.mark.slow  # three 24 s walks on the full runtime
 
 SILL_X_M = 1.2
-"""Where the obstacles terrain's sill is (whexar.sim.terrain.obstacles)."""
+"""Where the sill stands across the path, m."""
 
 
 def walk(tmp_path: Path, *, elevator: bool) -> tuple[float, int]:
     """The body's x at the end, and the falls."""
     doc = {
         "name": "sill",
-        "description": "A tripod walk at the default step into the 6 cm sill.",
+        "description": "A tripod walk at the default step into an 8 cm sill.",
         "duration_s": 24.0,
         "seed": 0,
-        "terrain": "obstacles",
+        "terrain": {
+            "base": "flat",
+            "blocks": [{"size_mm": [40.0, 1500.0, 80.0], "at_m": [SILL_X_M, 0.0]}],
+        },
         "commands": [{"t": 3.0, "gait": "tripod", "vx_m_s": 0.1}],
     }
     if elevator:
