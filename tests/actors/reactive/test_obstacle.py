@@ -12,12 +12,8 @@ import pytest
 from whexar.actors.locomotion.asks import Asks
 from whexar.actors.messages import ObstacleRanges, ReflexRequest
 from whexar.actors.reactive import check_params
-from whexar.actors.reactive.obstacle import (
-    RAY_DOWN_PER_TROCHANTER,
-    ObstacleReflex,
-    profile,
-    ray_point,
-)
+from whexar.actors.reactive.obstacle import RAY_DOWN_PER_TROCHANTER, ObstacleReflex
+from whexar.actors.reactive.profile import profile, ray_point
 from whexar.config import RobotConfig
 from whexar.testing.reflexes import body_motion, leg_state, locomotion_state
 

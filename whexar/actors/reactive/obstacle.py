@@ -19,8 +19,8 @@ navigation's work (4.2.3). Here:
   line through the stance feet: the body pitched nose down over its feet).
   Taken in the plane of the feet (the body keeps parallel to a slope, the
   trochanter following the pitch, eq. 4.18), a slope is level: only a change
-  of ground shows. A point is ``(x, z)``: along the ray,
-  and up from the ground under the feet (:func:`ray_point`).
+  of ground shows. A point is ``(x, z)``: along the ray, and up from the ground
+  under the feet (:func:`~whexar.actors.reactive.profile.ray_point`).
 * **Calibration.** Each rangefinder's gain differs from part to part (±13 %
   of its output swing, Sharp GP2Y0A21YK data sheet: ±23 % of a distance through
   eq. 5.5), enough to lift the floor 5 cm in the rays' picture. While the robot
@@ -38,13 +38,15 @@ navigation's work (4.2.3). Here:
   their angle (``ReflexRequest.trochanter_rad``: all legs turn together, the
   body sways over its feet), one ``scan_step_deg`` every ``settle_s``, taking a
   reading at each: a profile from the ground in front over the obstacle to what
-  lies behind it (:func:`profile`). Its height is its highest point, its front
-  the nearest risen point, its depth how far its top runs. A rise whose face is
-  gentler than ``max_face_deg`` is a slope (the rangefinders see ramps too):
-  nothing to do. Where no ray met the ground before the rise — the robot rode to
-  a ramp whose foot lies under its sensors — the face runs from where the front
-  feet stand: every ray met the 15° ramp 10 cm up, and a face taken as straight
-  up made it an obstacle a hair over ``climb_m``, kept off for good.
+  lies behind it (:mod:`~whexar.actors.reactive.profile`). Its height is its
+  highest point, its front the nearest risen point, its depth how far its top
+  runs. A rise whose face is gentler than ``max_face_deg`` is a slope (the
+  rangefinders see ramps too): nothing to do. Where no ray met the ground
+  before the rise — the robot rode to a ramp whose foot lies under its
+  sensors, or stopped late before a box — the face runs from where the front
+  feet stand; if that makes it a slope, but taken straight up it would be an
+  obstacle to climb, it is climbed (a higher step costs a ramp seconds; a ramp
+  kept off for good strands the robot).
 * **Climb** an obstacle at most ``climb_m`` high whose top the sweep saw: the
   walk goes on with the step at least its height and ``clearance_m`` (a
   ``ReflexRequest.step_height_m``; the coordinator keeps it within
@@ -66,8 +68,8 @@ docs/reflexes.md.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Iterable
+from dataclasses import replace
 from functools import partial
 from typing import Literal
 
@@ -75,6 +77,7 @@ import numpy as np
 from pydantic import Field
 
 from whexar.actors.messages import BodyMotion, LegState, LocomotionState, ObstacleRanges
+from whexar.actors.reactive.profile import Profile, profile, ray_point
 from whexar.actors.reactive.reflex import WALKING, Command, Reflex, ReflexParams
 from whexar.config import RobotConfig, StanceSpec
 from whexar.kinematics.leg import fk_chain
@@ -91,8 +94,6 @@ RAY_DOWN_PER_TROCHANTER = -1.0
 them level (eq. 4.18), and a nose-up pitch is negative (eq. 5.7 on the board's axes), so
 turning it by +θ raises them by θ."""
 STILL_M_S = 1e-3
-
-Kind = Literal["clear", "slope", "obstacle"]
 
 
 class ObstacleParams(ReflexParams):
@@ -147,97 +148,6 @@ class ObstacleParams(ReflexParams):
     clear_s: float = Field(1.0, ge=0.0, le=30.0)
     """A blocked way is free once the rangefinders have seen nothing risen within
     ``see_m`` for this long, s."""
-
-
-@dataclass(frozen=True)
-class Profile:
-    """What a sweep saw (:func:`profile`): ``kind``; for an obstacle its ``front`` (m
-    along the ray), ``height`` and ``depth`` (m), whether a ray passed over its top
-    (``top_seen``: else the height is a lower bound) and beyond its back (``back_seen``:
-    else the depth is); for a slope its ``face_deg``; whether a ray saw the rise's face
-    (``face_seen``: ground before it, or its own points rising straight up; else its face
-    ran from the front feet's ground)."""
-
-    kind: Kind
-    front: float = math.inf
-    height: float = 0.0
-    depth: float = 0.0
-    top_seen: bool = False
-    back_seen: bool = False
-    face_deg: float = 90.0
-    face_seen: bool = True
-
-
-def ray_point(distance: float, down_rad: float, height: float) -> tuple[float, float]:
-    """The point a ray from ``height`` m, pitched down by ``down_rad``, meets at
-    ``distance`` m: (along, up) from the ground under the sensor; ``math.inf`` along for
-    nothing in range."""
-    if not math.isfinite(distance):
-        return (math.inf, -math.inf)
-    return (distance * math.cos(down_rad), height - distance * math.sin(down_rad))
-
-
-def profile(
-    points: Sequence[tuple[float, float]],
-    *,
-    min_height: float,
-    tolerance: float,
-    max_face_deg: float,
-    origin: float = math.inf,
-    ground: float = math.inf,
-) -> Profile:
-    """Sort a sweep's points (:func:`ray_point`; ``x`` infinite: the ray met nothing)
-    into clear ground, a slope or an obstacle (module docstring). An obstacle's height is
-    the median of its top's points: the sensor's noise spreads them over ``tolerance``.
-    Given the rays' ``origin`` height, its back edge is placed between the last point on
-    its top and the next ray's crossing of the top's height (a sweep's steps are coarse
-    where the rays graze the top). Where no ray met the ground before the rise (the
-    robot stands at its foot), its face runs from ``ground``, m along the rays: where
-    the front feet stand, the last ground known."""
-    risen = [p for p in points if math.isfinite(p[0]) and p[1] >= min_height]
-    if not risen:
-        return Profile("clear")
-    top = max(z for _, z in risen)
-    front = min(x for x, _ in risen)
-    tops = [p for p in risen if p[1] >= top - tolerance]
-    first = min(tops)
-    lowest = min(risen, key=lambda p: (p[1], p[0]))
-    face_seen = True
-    if lowest[0] >= first[0] or lowest == first:
-        before = [p for p in points if p[0] < front and p[1] < min_height]
-        # No ground seen before it: its points rising straight up are its face (a wall's),
-        # else it rises from the front feet's ground at the furthest.
-        under = [p for p in risen if p[0] <= first[0] + 1e-3 and p[1] < first[1] - tolerance]
-        if before:
-            lowest = max(before)
-        elif under:
-            lowest = min(under, key=lambda p: p[1])
-        else:
-            lowest = (min(ground, first[0]), 0.0)
-            face_seen = not math.isfinite(ground)
-    run = first[0] - lowest[0]
-    face = 90.0 if run <= 1e-3 else math.degrees(math.atan2(first[1] - lowest[1], run))
-    if face < max_face_deg:
-        return Profile("slope", front=front, height=top, face_deg=face, face_seen=face_seen)
-    height = float(np.median([z for _, z in tops]))
-    back = max(x for x, _ in tops)
-    beyond = [p for p in points if p[0] > first[0] + tolerance and p[1] < top - tolerance]
-    passed = [p for p in beyond if p[0] > back and math.isfinite(p[0])]
-    if passed and origin > height:
-        # The back edge lies between the last point on the top and where the first ray
-        # that passed it crossed the top's height: the middle of the two.
-        crossing = min(x * (origin - height) / (origin - z) for x, z in passed)
-        back = (back + max(back, crossing)) / 2
-    return Profile(
-        "obstacle",
-        front=front,
-        height=height,
-        depth=back - front,
-        top_seen=bool(beyond),
-        back_seen=bool(passed),
-        face_deg=face,
-        face_seen=face_seen,
-    )
 
 
 class ObstacleReflex(Reflex):
