@@ -43,7 +43,8 @@ searching down, the ground holding it (its goal error grown by
 (:mod:`.steps`): the typed signal a reflex subscribes to. A settling move that
 comes while a foot searches carries the search on; another step on the ground
 (the walk stops) leaves an awaited touchdown to be judged when due; only a new
-swing judges it at once.
+swing judges it at once. A swing stopped early stands where the joints hold the
+foot across the ground (:mod:`.tracking`).
 
 The leg flip (6.8.1): when :class:`BodyMotion` says ``upside_down`` changed,
 the trochanter turns by 180° while the other joints hold: the leg, rotated
@@ -73,6 +74,7 @@ from whexar.actors.locomotion.steps import (
     interrupted,
     load_error,
 )
+from whexar.actors.locomotion.tracking import Lift, Tracked, stand_where_stopped, tracked
 from whexar.actors.locomotion.wire_goals import WireGoals
 from whexar.actors.messages import (
     BodyMotion,
@@ -85,7 +87,6 @@ from whexar.actors.messages import (
     ServoStates,
     StepCommand,
     SwingEnded,
-    Vec3,
 )
 from whexar.config import ContactSource, RobotConfig
 from whexar.errors import KinematicsError
@@ -98,15 +99,6 @@ from whexar.runtime.messages import Message
 FLIPPED_TROCHANTER: Final = -math.pi
 """Trochanter angle of a flipped leg: Goal Position tick 0, inside the register's turn."""
 _POSITIONING: Final = 5
-LIFTED: Final = 0.5
-"""A swing stopped early stands where its foot stopped only if the joints had lifted the
-foot this fraction of its step: one that came down on an edge had risen over it, one that
-never left its ground (a loaded leg on a steep slope) had not (docs/reflexes.md, "A foot
-stopped on an edge")."""
-READ_FRESH_S: Final = 0.1
-"""A joint read longer ago (a servo lost) leaves the foot's error unknown: ten cycles."""
-_READ_JOINTS: Final = (0, 2, 3, 4)
-"""The joints the foot's error reads (the default plan leaves the trochanter out)."""
 
 
 class LegController:
@@ -140,10 +132,8 @@ class LegController:
         self.foot: list[float] | None = None
         self.angles: list[float] | None = None
         """The last good positioning angles (coxa…tarsus) from the IK."""
-        self.lifted = 0.0
-        """How high the joints have lifted the foot in its swing, over its start, m."""
-        self.lift_from: float | None = None
-        """… the height they put it at as the swing began, m."""
+        self.lift = Lift()
+        """How high the joints have lifted the foot in the step under way."""
         self.measured: list[float | None] = [None] * N_JOINTS
         self.read_t = [-math.inf] * N_JOINTS  # when each joint's position was last read
         self.currents: list[float | None] = [None] * N_JOINTS
@@ -233,7 +223,7 @@ class LegController:
             elif what == "wait":
                 self.unjudged = old
         self.step = begin(cmd, origin, shape, joint_space, self.spec)
-        self.lifted, self.lift_from = 0.0, None
+        self.lift.reset()
         if old is not None and what == "carry":
             self.step.carry_search(old)
         if self.foot is None:
@@ -305,35 +295,6 @@ class LegController:
                 confidence=self.confidence,
             )
         )
-
-    def _lift(self, t: float) -> None:
-        """Follow how high the joints have lifted the foot in this swing (:attr:`lifted`):
-        the highest point the joints' forward kinematics put it, over the first."""
-        troch = FLIPPED_TROCHANTER if self.frame.upside_down else self.trochanter
-        measured, _ = self._tracked(t, troch) or (None, None)
-        if measured is None:
-            return
-        if self.lift_from is None:
-            self.lift_from = measured[2]
-        self.lifted = max(self.lifted, measured[2] - self.lift_from)
-
-    def _stopped_where_it_is(self, t: float, before: Vec3) -> None:
-        """A swing stopped early by ground: its stance starts where the joints held the foot
-        across the ground, not where its goal had gone on to. Against an edge or a face the
-        goal runs on past the foot by the servos' lag, and held there the leg pushes the
-        body away from what stopped it with the servos' stiffness. Up and down the goal
-        stays: pressing onto the ground is what loads a stance foot (docs/reflexes.md, "A
-        foot stopped on an edge"). ``before`` is the point the goals on the wire were
-        solved for."""
-        troch = FLIPPED_TROCHANTER if self.frame.upside_down else self.trochanter
-        measured, sent = self._tracked(t, troch) or (None, None)
-        if measured is None or sent is None or self.foot is None:
-            return
-        # That point moved by the servos' tracking error, not the joints' point itself: the
-        # plan's points and the joints' forward kinematics part where the trochanter turns
-        # (its arc, docs/slopes.md), and the error is what the edge held back.
-        for k in (0, 1):
-            self.foot[k] = before[k] + measured[k] - sent[k]
 
     # ----------------------------------------------------------------- IK and goals
 
@@ -442,7 +403,7 @@ class LegController:
         if waiting is not None and (contact or waiting.touchdown_due(t)):
             self.unjudged = None
             self._swing_ended(t, waiting.judged(contact), waiting)
-        phase, progress = "idle", 0.0
+        phase, progress, outcome, before = "idle", 0.0, None, None
         if self.step is not None and self.foot is not None:
             # The stance shares its load while the estimate reads the force sensors.
             balance = self.load_error if source == "fsr" else None
@@ -450,16 +411,18 @@ class LegController:
             phase, progress, outcome = advance(
                 self.step, self.foot, self.twist, t, dt, contact, source, balance
             )
-            if self.step.kind == "swing":
-                self._lift(t)
-            if outcome == "early_contact" and self.lifted >= LIFTED * self.step.height:
-                self._stopped_where_it_is(t, before)
             if outcome is not None:
                 self._swing_ended(t, outcome, self.step)
         if self.foot is None:
             return out  # no command yet: the bus holds the servos where they stand
         troch = self._trochanter_at(t)
+        # Where the joints hold the foot, against the goals (.tracking): read once a cycle.
+        seen = tracked(self.measured, self.read_t, self.sent, t, troch, self.geometry, self.frame)
         step = self.step
+        if step is not None and step.kind == "swing":
+            self.lift.see(seen)
+            if outcome == "early_contact" and before is not None and self.lift.enough(step.height):
+                stand_where_stopped(self.foot, before, seen)  # .tracking: off an edge
         angles: list[float] | None
         if step is not None and step.joint_space is not None and phase == "move":
             a, b = step.joint_space
@@ -495,39 +458,20 @@ class LegController:
             self.search_from = None
         self.phase = phase
         if self.report:
-            out.append(self._state(t, phase, progress, troch, contact, source))
+            out.append(self._state(t, phase, progress, seen, contact, source))
         return out
 
-    def _measured_foot(self, t: float, troch: float) -> tuple[Vec3 | None, float | None]:
-        """Where the joints read put the foot (upright frame), and how far that is from
-        where the goals sent put it (None while a joint read is stale or none was sent);
-        ``troch`` stands for a trochanter the plan does not read."""
-        measured, sent = self._tracked(t, troch) or (None, None)
-        if measured is None:
-            return None, None
-        return measured, None if sent is None else math.dist(measured, sent)
-
-    def _tracked(self, t: float, troch: float) -> tuple[Vec3, Vec3 | None] | None:
-        """Where the joints read put the foot and where the goals sent put it (upright
-        frame; the latter None while a joint read is stale or none was sent)."""
-        coxa, trochanter, femur, tibia, tarsus = self.measured[:_POSITIONING]
-        if trochanter is None:
-            trochanter = troch  # a plan that does not read it (the default) leaves its goal
-        if coxa is None or femur is None or tibia is None or tarsus is None:
-            return None
-        q = fk_point((coxa, trochanter, femur, tibia, tarsus), self.geometry)
-        sent = self.sent[:_POSITIONING]
-        fresh = all(t - self.read_t[j] <= READ_FRESH_S for j in _READ_JOINTS)
-        g = fk_point(sent, self.geometry) if fresh and all(map(math.isfinite, sent)) else None
-        if self.frame.upside_down:
-            q = (q[0], -q[1], q[2])
-            g = None if g is None else (g[0], -g[1], g[2])
-        return self.frame.from_leg(q), None if g is None else self.frame.from_leg(g)
-
     def _state(
-        self, t: float, phase: str, progress: float, troch: float, contact: bool, source: str
+        self,
+        t: float,
+        phase: str,
+        progress: float,
+        seen: Tracked | None,
+        contact: bool,
+        source: str,
     ) -> LegState:
-        measured, error = self._measured_foot(t, troch)
+        measured = None if seen is None else seen.measured
+        error = None if seen is None else seen.error
         if error is not None:
             self.foot_error = error
         assert self.foot is not None
