@@ -93,12 +93,12 @@ from whexar.errors import KinematicsError
 from whexar.kinematics.contact import ContactEstimator, segment_load
 from whexar.kinematics.leg import fk_point, ik_point, trochanter_arc
 from whexar.kinematics.trajectory import SwingOutcome, min_jerk, swing_table
-from whexar.robot import N_JOINTS
+from whexar.robot import N_JOINTS, POSITIONING_JOINTS
 from whexar.runtime.messages import Message
 
 FLIPPED_TROCHANTER: Final = -math.pi
 """Trochanter angle of a flipped leg: Goal Position tick 0, inside the register's turn."""
-_POSITIONING: Final = 5
+_POSITIONING: Final = len(POSITIONING_JOINTS)
 
 
 class LegController:

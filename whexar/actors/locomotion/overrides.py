@@ -20,8 +20,9 @@ from collections.abc import Iterable
 
 from whexar.actors.messages import JointGoals
 from whexar.kinematics.trajectory import min_jerk
+from whexar.robot import POSITIONING_JOINTS
 
-_POSITIONING = 5
+_POSITIONING = len(POSITIONING_JOINTS)
 """Joints an override may hold: coxa, trochanter, femur, tibia, tarsus."""
 
 

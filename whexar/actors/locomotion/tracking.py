@@ -28,9 +28,9 @@ from whexar.actors.locomotion.frames import LegFrame
 from whexar.actors.messages import Vec3
 from whexar.kinematics.geometry import LegGeometry
 from whexar.kinematics.leg import fk_point
+from whexar.robot import POSITIONING_JOINTS
 
-_POSITIONING: Final = 5
-"""The joints that place the foot: coxa, trochanter, femur, tibia, tarsus."""
+_POSITIONING: Final = len(POSITIONING_JOINTS)
 READ_FRESH_S: Final = 0.1
 """A joint read longer ago (a servo lost) leaves the foot's error unknown: ten cycles."""
 _READ_JOINTS: Final = (0, 2, 3, 4)
