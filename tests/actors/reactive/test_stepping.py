@@ -3,6 +3,8 @@ stepped back, once per rest (6.7.1)."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from whexar.actors.messages import LegState, ReflexRequest
@@ -65,3 +67,36 @@ def test_only_a_stance_with_a_known_error_counts(phase: str, error: float | None
 
 def test_it_holds_back_the_searching_and_elevator_reflexes() -> None:
     assert set(Stepping.inhibits) == {"reflex-searching", "reflex-elevator"}
+
+
+def test_a_leg_whose_error_spreads_wide_is_kept_only_beyond_its_spread() -> None:
+    # A loaded rear leg on 30°: its stance error swings 10–46 mm with the stride (about a
+    # 28 mm mean, 13 mm standard deviation), which is its load, not a leg kept away.
+    s = stepping()
+    feed(s, 0.0, 1.0, 0.028, "hold")  # it stood on the slope before it walked
+    out: list[Command] = []
+    for k in range(2000):
+        t = 1.0 + 0.01 * k
+        err = 0.028 + 0.018 * math.sin(2 * math.pi * t / 1.5)
+        out += s.react(t, state(t, err))
+    assert requests(out) == []
+    assert s.limit(0) > 0.028 + 0.04
+    # The same leg snagged: far beyond its spread, stepped back.
+    (req,) = requests(feed(s, 21.0, 21.5, 0.09))
+    assert req.restep_leg == 0
+    # A leg steady at 10 mm is kept at 35 mm (error_m over its usual), its spread small.
+    steady = stepping()
+    feed(steady, 1.0, 5.0, 0.01)
+    assert steady.limit(0) == pytest.approx(0.035, abs=1e-3)
+
+
+def test_an_error_falling_after_a_touchdown_is_the_servos_catching_up() -> None:
+    s = stepping()
+    feed(s, 1.0, 3.0, 0.01)
+    out: list[Command] = []
+    for k in range(30):  # 70 mm at the touchdown, 1.5 mm less each cycle
+        t = 3.0 + 0.01 * k
+        out += s.react(t, state(t, 0.07 - 0.0015 * k))
+    assert requests(out) == []
+    # Held where it is instead (a snag): stepped back after hold_s.
+    assert len(requests(feed(s, 3.3, 3.6, 0.05))) == 1
