@@ -218,13 +218,15 @@ def advance(
     contact: bool,
     source: str,
     load_error: float | None = None,
+    raised: bool = True,
 ) -> tuple[str, float, SwingOutcome | None]:
     """Move ``foot`` (upright frame, in place) along ``step`` to time ``t``; ``dt`` since the
     last cycle, ``twist`` the body's, ``contact`` this cycle's reading from ``source``
     (``"none"``: the leg senses no contact), ``load_error`` how many counts its force
-    sensor reads below the loaded feet's mean (None: not known). Returns the phase (swing,
-    move, stance, hold, ride, search), the progress through the step and, when the swing's
-    outcome is known now, that."""
+    sensor reads below the loaded feet's mean (None: not known), ``raised`` whether the
+    joints have lifted the foot off its ground (a swing is blocked on its way up only
+    then). Returns the phase (swing, move, stance, hold, ride, search), the progress
+    through the step and, when the swing's outcome is known now, that."""
     u = (t - step.start_t) / step.duration
     u = 0.0 if u < 0.0 else 1.0 if u > 1.0 else u
     if step.kind == "swing" and not step.ended:
@@ -235,7 +237,7 @@ def advance(
         foot[1] = o[1] + (g[1] - o[1]) * f
         foot[2] = o[2] + (g[2] - o[2]) * f + step.height * h
         if source != "none":
-            outcome = _adapt(step, u, contact)
+            outcome = _adapt(step, u, contact, raised)
             if outcome is None and step.ended:  # down with no contact: wait for it
                 step.awaiting = True
                 if step.touchdown_s <= 0.0 and step.search_depth <= 0.0:
@@ -343,7 +345,7 @@ def load_error(counts: Sequence[int], contacts: Sequence[bool], leg: int) -> flo
     return sum(loaded) / len(loaded) - counts[leg] if len(loaded) >= 3 else None
 
 
-def _adapt(step: Step, u: float, contact: bool) -> SwingOutcome | None:
+def _adapt(step: Step, u: float, contact: bool, raised: bool = True) -> SwingOutcome | None:
     """Adaptive swing (Diosdado 2014, 3.5–3.6) on the contact reading of this cycle."""
     assert step.shape is not None
     if not contact:
@@ -358,6 +360,8 @@ def _adapt(step: Step, u: float, contact: bool) -> SwingOutcome | None:
     if not step.lifted or u <= 0.0:
         return None  # still on the ground at lift-off, or a sensor stuck on
     if u < step.shape.apex_u:
+        if not raised:
+            return None  # the foot has not left its ground: its load moving off, not a block
         if not step.reported:
             step.reported = True
             return "blocked"  # the elevator reflex's case

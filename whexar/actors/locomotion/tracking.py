@@ -41,6 +41,12 @@ foot this fraction of its step: one that came down on an edge had risen over it,
 never left its ground (a loaded leg on a steep slope) had not (docs/reflexes.md, "A foot
 stopped on an edge")."""
 
+BLOCK_LIFT_M: Final = 0.01
+"""A swing is blocked on its way up only once the joints have lifted its foot this high, m:
+on 30° a loaded leg's contact comes and goes as its load moves off at lift-off, its foot
+risen 0–8 mm, and a 6 cm sill stopped the front feet at 1.5–4.4 cm (docs/reflexes.md,
+"elevator")."""
+
 
 @dataclass(frozen=True)
 class Tracked:
@@ -103,6 +109,11 @@ class Lift:
         if self.start is None:
             self.start = z
         self.lifted = max(self.lifted, z - self.start)
+
+    def raised(self) -> bool:
+        """Whether the joints have lifted the foot :data:`BLOCK_LIFT_M` off its ground (not
+        known, joints unread: taken as lifted, as the goals say)."""
+        return self.start is None or self.lifted >= BLOCK_LIFT_M
 
     def enough(self, height: float) -> bool:
         """Whether the foot rose :data:`LIFTED` of a step ``height`` high."""
