@@ -107,16 +107,16 @@ def test_a_stance_foot_reaching_into_a_hole_is_active_and_stepped_again_if_it_fi
     s.react(0.5, locomotion_state(0.5, "walking", gait="ripple"))
     s.react(1.0, state(1.0, "stance", True, z=-0.29))
     # The leg held the loss itself and reaches down (phase search): nothing is asked, and
-    # nothing is a hole before the foot is found_m (1 cm) below where it stood.
+    # nothing is a hole before the foot is found_m (2.5 cm) below where it stood.
     assert requests(s.react(1.3, state(1.3, "search", False, z=-0.29))) == []
-    assert requests(s.react(1.4, state(1.4, "search", False, z=-0.295))) == []
+    assert requests(s.react(1.4, state(1.4, "search", False, z=-0.31))) == []
     assert not s.active
-    assert requests(s.react(1.5, state(1.5, "search", False, z=-0.30))) == []
+    assert requests(s.react(1.5, state(1.5, "search", False, z=-0.315))) == []
     assert s.active
     assert "reaching down" in s.reason
-    # It found ground 2 cm down: the walk went on all along; the reflex is quiet soon after.
-    assert requests(s.react(1.6, state(1.6, "stance", True, z=-0.31))) == []
-    assert "found ground 2 cm lower" in s.reason
+    # It found ground 3 cm down: the walk went on all along; the reflex is quiet soon after.
+    assert requests(s.react(1.6, state(1.6, "stance", True, z=-0.32))) == []
+    assert "found ground 3 cm lower" in s.reason
     s.tick(1.6 + 0.5)
     assert not s.active
     # Its swing came while it reached: that swing searches, nothing is asked.
@@ -135,14 +135,14 @@ def test_a_stance_foot_reaching_into_a_hole_is_active_and_stepped_again_if_it_fi
 
 
 def test_a_stance_foot_that_finds_the_ground_within_found_m_is_no_activation() -> None:
-    # On 30° the body rolls off a middle foot every few steps; it reaches 5 mm and has its
-    # load back (155 of 169 reaches in 200 s found the ground within 10 mm): no hole.
+    # On 30° the body rolls off a middle foot every few steps; it reaches a few millimetres
+    # and has its load back (in 200 s, 98 reaches, the deepest 1.4 cm): no hole.
     s = searching()
     s.react(0.5, locomotion_state(0.5, "walking", gait="wave"))
     s.react(1.0, state(1.0, "stance", True, z=-0.29))
     s.react(1.3, state(1.3, "search", False, z=-0.29))
-    s.react(1.4, state(1.4, "search", False, z=-0.295))
-    assert requests(s.react(1.45, state(1.45, "stance", True, z=-0.295))) == []
+    s.react(1.4, state(1.4, "search", False, z=-0.304))
+    assert requests(s.react(1.45, state(1.45, "stance", True, z=-0.304))) == []
     assert not s.active
     assert s.reason == ""
 
@@ -176,9 +176,9 @@ def test_ground_found_a_hole_deep_is_a_moment_of_activity_a_press_is_not() -> No
     s = searching()
     s.react(1.0, state(1.0, "search", False))
     assert not s.active  # the leg searches on its own
-    pressed = SwingEnded(t=1.5, source="leg", leg=2, outcome="completed", ground_offset_m=-0.006)
+    pressed = SwingEnded(t=1.5, source="leg", leg=2, outcome="completed", ground_offset_m=-0.02)
     s.react(1.5, pressed)
-    assert not s.active  # 6 mm: a foot pressed into ground it did not feel at once
+    assert not s.active  # 2 cm: on 30° the ground itself is found that much lower
     hole = SwingEnded(t=2.0, source="leg", leg=2, outcome="completed", ground_offset_m=-0.03)
     s.react(2.0, hole)
     assert s.active
@@ -233,3 +233,24 @@ def test_in_a_gait_on_four_or_five_feet_the_walk_goes_on_without_the_foothold() 
     # It tries again at the leg's next swing: around once more.
     (again,) = requests(list(s.react(4.0, ended(4.0, "no_contact"))))
     assert again.restep_leg == 1
+
+
+def test_a_loss_seen_a_cycle_before_the_leg_reaches_is_its_reach_not_a_step_again() -> None:
+    # The leg holds the loss itself, from its own reading: its reach may begin a cycle
+    # after the reflex has seen the loss.
+    hold = CFG.contact.touchdown_s
+    s = searching()
+    s.react(0.5, locomotion_state(0.5, "walking", gait="wave"))
+    s.react(1.0, state(1.0, "stance", True, z=-0.29))
+    s.react(1.01, state(1.01, "stance", False, z=-0.29))
+    assert requests(s.react(1.01 + hold, state(1.01 + hold, "stance", False, z=-0.29))) == []
+    assert requests(s.react(1.02 + hold, state(1.02 + hold, "search", False, z=-0.291))) == []
+    assert requests(s.react(1.2 + hold, state(1.2 + hold, "stance", True, z=-0.295))) == []
+    assert not s.active
+    # One whose reach never begins (it has reached all it may this stance) is stepped again.
+    s.react(3.0, state(3.0, "stance", True, z=-0.29))
+    s.react(3.01, state(3.01, "stance", False, z=-0.29))
+    assert requests(s.react(3.01 + hold, state(3.01 + hold, "stance", False, z=-0.29))) == []
+    (req,) = requests(s.react(3.1 + hold, state(3.1 + hold, "stance", False, z=-0.29)))
+    assert req.restep_leg == 2
+    assert "stepped again" in s.reason

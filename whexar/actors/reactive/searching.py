@@ -61,6 +61,11 @@ from whexar.runtime.messages import Message
 
 FOUND_S = 0.5
 """A hole found keeps the reflex active this long: a spell the timeline shows."""
+REACH_START_S = 0.05
+"""A stance leg that lost its support begins its reach within this long of the loss seen
+here: it holds the loss itself, counted from its own reading, a cycle or two apart. On 30°
+six of eleven activations in 600 s were legs stepped again in that cycle, their reach
+about to begin (docs/reflexes.md, "searching")."""
 
 
 class SearchingParams(ReflexParams):
@@ -84,11 +89,11 @@ class SearchingParams(ReflexParams):
     instead of 0, and raised 30°'s false triggers (docs/reflexes.md, "searching")."""
     confidence: float = Field(0.5, gt=0.0, lt=1.0)
     """A loss counts when the leg's contact estimate believes it at least this much."""
-    found_m: float = Field(0.01, gt=0.0, le=0.1)
+    found_m: float = Field(0.025, gt=0.0, le=0.1)
     """Ground found this far below the expected (a swing's), or below where a stance foot
-    stood (a reach's), is a hole (the flat's own is 0–9 mm: the terrain estimator's 10 mm;
-    3 cm with the stance sharing its load; on 30° 155 of 169 reaches found the ground
-    within 10 mm, docs/reflexes.md)."""
+    stood (a reach's), is a hole: above what the ground itself gives (the flat's 0–9 mm;
+    on 30° swings end up to 2.0 cm lower, reaches up to 1.4 cm), half the 5 cm trench's
+    (docs/reflexes.md, "searching")."""
 
 
 class Searching(Reflex):
@@ -111,6 +116,8 @@ class Searching(Reflex):
         """Legs that found none: the body is held for them."""
         self.reaching: dict[int, float] = {}
         """Stance legs reaching down for a support they lost: where each foot stood, m."""
+        self.reach_t = [0.0] * N_LEGS
+        """Per leg: when its reach began (its loss seen here)."""
         self.holes: set[int] = set()
         """… those that reached ``found_m`` or deeper: a hole (the reflex active)."""
         self.losses = StanceLoss(N_LEGS, cfg.contact.touchdown_s, self.params.confidence)
@@ -190,13 +197,17 @@ class Searching(Reflex):
     def _leg(self, t: float, msg: LegState) -> list[Command]:
         i = msg.leg
         lost = self.losses.lost(t, i, msg.phase, msg.contact, msg.contact_confidence)
-        if lost and msg.phase == "search" and self.reach > 0.0:
+        if lost and msg.phase in ("search", "stance") and self.reach > 0.0:
             # The leg reaches down while four or five feet hold the body; on three (the
             # tripod's) the walk rocks over the edge that took the support: stepped again.
+            # Its reach may begin a cycle after the loss is seen here (its own hold).
             self.reaching[i] = msg.foot[2]
+            self.reach_t[i] = t
             return []
         if i in self.reaching:
             depth = self.reaching[i] - msg.foot[2]
+            if msg.phase == "stance" and not msg.contact and t - self.reach_t[i] < REACH_START_S:
+                return []  # its reach not begun yet
             if msg.phase == "search":
                 if depth >= self.params.found_m and i not in self.holes:
                     self.holes.add(i)
