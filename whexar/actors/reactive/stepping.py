@@ -94,7 +94,8 @@ class Stepping(Reflex):
     def limit(self, leg: int) -> float:
         """The stance error beyond which leg ``leg`` counts as kept from its goal, m."""
         p = self.params
-        return self.usual[leg] + max(p.error_m, p.spread_k * self.var[leg] ** 0.5)
+        sd: float = self.var[leg] ** 0.5
+        return self.usual[leg] + max(p.error_m, p.spread_k * sd)
 
     def react(self, t: float, msg: Message) -> Iterable[Command]:
         if not isinstance(msg, LegState):
