@@ -197,7 +197,7 @@ class Searching(Reflex):
     def _leg(self, t: float, msg: LegState) -> list[Command]:
         i = msg.leg
         lost = self.losses.lost(t, i, msg.phase, msg.contact, msg.contact_confidence)
-        if lost and msg.phase in ("search", "stance") and self.reach > 0.0:
+        if lost and self.reach > 0.0:
             # The leg reaches down while four or five feet hold the body; on three (the
             # tripod's) the walk rocks over the edge that took the support: stepped again.
             # Its reach may begin a cycle after the loss is seen here (its own hold).

@@ -8,13 +8,16 @@ A leg's :class:`~whexar.actors.messages.LegState` says how far its foot is from
 where the goals it sent put it (``foot_error_m``: the servos' tracking error at
 the foot — a leg pushed, held or snagged). What a stance foot's error is
 depends on the load the leg carries: 9 mm at the median walking the tripod
-gait on the flat, 18 mm on 15°, more on steeper ground. So each leg learns its
-own: a running mean of its stance errors over ``learn_s`` of stance (the
-readings beyond the trigger left out). In stance, an error ``error_m`` beyond
-that, held for ``hold_s``, makes the reflex ask the coordinator to step that
-leg again to its neutral point (``restep_leg``): the body halts, the leg swings
-there, the walk goes on. A leg is stepped again at most once per ``rest_s``;
-the reflex is active from its request until ``rest_s`` passes.
+gait on the flat, 18 mm on 15°, more on steeper ground, and on 30° it swings
+with the stride. So each leg learns its own: a running mean and variance of
+its errors over ``learn_s`` of stance or standing (the readings beyond the
+trigger left out). In stance, an error beyond that mean by ``error_m`` or by
+``spread_k`` standard deviations, whichever is more, held for ``hold_s``,
+makes the reflex ask the coordinator to step that leg again to its neutral
+point (``restep_leg``): the body halts, the leg swings there, the walk goes on.
+An error that falls by ``settle_m`` while held is the servos catching up after
+a touchdown: the hold starts again. A leg is stepped again at most once per
+``rest_s``; the reflex is active from its request until ``rest_s`` passes.
 
 While active it holds back the searching and elevator reflexes (``inhibits``):
 a leg pushed off its foothold loses its support and meets things on its way,
