@@ -390,6 +390,15 @@ def test_a_swing_that_never_lifted_its_foot_keeps_its_goal_when_it_stops_early()
     assert leg.foot[0] > stood[0] + 0.02
 
 
+def test_a_contact_that_began_before_the_foot_rose_is_not_a_block() -> None:
+    leg, angles = placed()
+    # The foot's load comes back as it lifts (a neighbour not yet down): the force sensor
+    # reads contact from before the joints raised the foot and goes on reading it, lagging,
+    # as they lift it. Nothing stood in its path.
+    out = swing(leg, angles, lambda u, z: LOADED_A if 0.1 < u < 0.3 else 0.0, lambda u: True)
+    assert "blocked" not in [e.outcome for e in swing_ends(out)]
+
+
 def test_contact_on_the_way_up_is_blocked_once_and_the_swing_goes_on() -> None:
     leg, angles = placed()
     # Something pushes back on the way up, the foot lifted, then lets go.

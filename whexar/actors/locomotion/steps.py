@@ -100,6 +100,9 @@ class Step:
     """A move made in joint space: (start, goal) angles (the first move after start)."""
     lifted: bool = False
     """A swing's foot was seen off the ground (so a contact now is new ground)."""
+    grounded: bool = False
+    """The contact read now began before the joints had lifted the foot: its own ground,
+    loaded again, not something met (the force sensor's reading lags the lift)."""
     reported: bool = False
     ended: bool = False
     awaiting: bool = False
@@ -349,6 +352,7 @@ def _adapt(step: Step, u: float, contact: bool, raised: bool = True) -> SwingOut
     """Adaptive swing (Diosdado 2014, 3.5–3.6) on the contact reading of this cycle."""
     assert step.shape is not None
     if not contact:
+        step.grounded = False
         if u > 0.0:
             step.lifted = True
         if u >= 1.0:
@@ -360,8 +364,11 @@ def _adapt(step: Step, u: float, contact: bool, raised: bool = True) -> SwingOut
     if not step.lifted or u <= 0.0:
         return None  # still on the ground at lift-off, or a sensor stuck on
     if u < step.shape.apex_u:
-        if not raised:
-            return None  # the foot has not left its ground: its load moving off, not a block
+        if not raised or step.grounded:
+            # The foot had not left its ground when this contact began: its load coming
+            # back as it lifts (a neighbour not yet down), not something in its path.
+            step.grounded = True
+            return None
         if not step.reported:
             step.reported = True
             return "blocked"  # the elevator reflex's case
