@@ -1,7 +1,8 @@
 """A ramp up to 30° in the simulated world, walked with the elevator and the obstacle
 reflexes running: the rangefinders see the ramp and the obstacle reflex calls it a slope,
 the trochanters follow the pitch up it (eq. 4.18), and the elevator fires only where a
-swing meets the ramp's foot — never on the ramp itself (6.7.2's false triggers)."""
+swing meets the ramp's foot or the crest beyond the plateau — never on the ramp itself
+(6.7.2's false triggers)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,10 @@ pytestmark = pytest.mark.slow  # a 55 s walk on the full runtime
 
 FOOT_X_M = 1.0
 """Where the ramp starts; it rises 0.5 m at 30°, to a plateau from x = 1.87 m."""
+CREST_X_M = FOOT_X_M + 0.5 / math.tan(math.radians(30.0)) + 1.0
+"""Where the plateau ends and the ground goes down again at 30°."""
+REACH_M = 0.4
+"""How far ahead of the body's centre the front feet step (the default stance)."""
 
 
 def test_up_a_30_degree_ramp_the_legs_follow_and_no_false_elevator(tmp_path: Path) -> None:
@@ -46,10 +51,14 @@ def test_up_a_30_degree_ramp_the_legs_follow_and_no_false_elevator(tmp_path: Pat
     # The trochanters follow the pitch up the ramp (nose up is a negative pitch).
     motion = log.messages(of=BodyMotion)
     assert min(math.degrees(m.trochanter_rad) for m in motion) < -25.0
-    # The elevator: only where a swing met the ramp's foot, the body still before it.
+    # The elevator: only where a swing met the ramp's foot, the body still before it, or
+    # where the front feet go over the crest and the body tips down after them — never
+    # on the ramp itself or the plateau.
     fired = [a for a in log.messages(of=ReflexActivity) if a.active]
     elevator = [a for a in fired if a.reflex.endswith("elevator")]
-    assert all(x_at(a.t) < FOOT_X_M + 0.3 for a in elevator), [(a.t, x_at(a.t)) for a in elevator]
+    assert all(x_at(a.t) < FOOT_X_M + 0.3 or x_at(a.t) > CREST_X_M - REACH_M for a in elevator), [
+        (a.t, x_at(a.t)) for a in elevator
+    ]
     # The obstacle reflex measured the ramp as a slope and kept nothing off.
     asked = log.messages(of=ReflexRequest)
     assert any(r.reason == "a slope ahead" for r in asked)
