@@ -408,8 +408,10 @@ class LegController:
             # The stance shares its load while the estimate reads the force sensors.
             balance = self.load_error if source == "fsr" else None
             before = (self.foot[0], self.foot[1], self.foot[2])  # what the goals sent came from
-            args = (contact, source, balance, self.lift.raised())  # lifted: may be blocked
-            phase, progress, outcome = advance(self.step, self.foot, self.twist, t, dt, *args)
+            raised = self.lift.raised()  # only a lifted foot's swing can be blocked
+            phase, progress, outcome = advance(
+                self.step, self.foot, self.twist, t, dt, contact, source, balance, raised
+            )
             if outcome is not None:
                 self._swing_ended(t, outcome, self.step)
         if self.foot is None:

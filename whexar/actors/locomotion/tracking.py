@@ -132,4 +132,12 @@ def stand_where_stopped(foot: list[float], before: Vec3, seen: Tracked | None) -
         foot[k] = before[k] + seen.measured[k] - seen.sent[k]
 
 
-__all__ = ["LIFTED", "READ_FRESH_S", "Lift", "Tracked", "stand_where_stopped", "tracked"]
+__all__ = [
+    "BLOCK_LIFT_M",
+    "LIFTED",
+    "READ_FRESH_S",
+    "Lift",
+    "Tracked",
+    "stand_where_stopped",
+    "tracked",
+]
