@@ -5,7 +5,12 @@ from __future__ import annotations
 import pytest
 
 from whexar.config import RobotConfig
-from whexar.kinematics.contact import ContactEstimate, ContactEstimator, HealthChange
+from whexar.kinematics.contact import (
+    ContactEstimate,
+    ContactEstimator,
+    HealthChange,
+    depth_below_plane,
+)
 
 CFG = RobotConfig()
 MODEL = CFG.contact.model(CFG.locomotion.contact_current_a)
@@ -163,3 +168,22 @@ def test_the_preference_picks_the_sensor() -> None:
     fsr = Leg("fsr")
     (e,) = fsr.phase("stance", DT, fsr=None, amps=-1.2)
     assert e.source == "none"
+
+
+def test_a_foot_is_judged_against_the_plane_of_the_others_however_tilted() -> None:
+    # Four feet on a plane tilted 5° about x and 3° about y, the body over them.
+    def ground(x: float, y: float) -> float:
+        return -0.27 + 0.0875 * y - 0.0524 * x
+
+    feet = [(x, y, ground(x, y)) for x, y in ((0.3, 0.25), (0.3, -0.25), (-0.3, 0.3), (0, -0.35))]
+    on = (-0.3, -0.3, ground(-0.3, -0.3))
+    assert depth_below_plane(feet, on) == pytest.approx(0.0, abs=1e-9)
+    below = (on[0], on[1], on[2] - 0.03)
+    assert depth_below_plane(feet, below) == pytest.approx(0.03)
+    assert depth_below_plane(feet[:3], below) == pytest.approx(0.03)  # three make a plane
+
+
+def test_two_feet_or_feet_in_a_line_make_no_plane() -> None:
+    assert depth_below_plane([(0.3, 0.2, -0.27), (-0.3, 0.2, -0.27)], (0.0, 0.0, -0.3)) is None
+    line = [(0.3, 0.2, -0.27), (0.0, 0.23, -0.27), (-0.3, 0.2, -0.27)]  # one side's feet
+    assert depth_below_plane(line, (0.0, -0.2, -0.3)) is None

@@ -55,6 +55,7 @@ event. Plain class, no clock: the time is an argument.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final, Literal
 
@@ -74,6 +75,39 @@ _MIN_MOVES: Final = 10
 
 MIN_SIN: Final = 0.05
 """eq. 5.19 divides by sin α: below this (a joint within 3° of straight) it says nothing."""
+PLANE_MIN_FEET: Final = 3
+"""Feet that make a ground plane: three, not in a line."""
+PLANE_SPREAD_M: Final = 0.05
+"""Feet closer than this to one line (their RMS distance from it) make a line, not a plane:
+a plane fitted through them would tilt at will across it. Three feet of one side stand
+2–3 cm off a line; a tripod's or any two sides' feet 0.2–0.3 m."""
+
+
+def depth_below_plane(
+    feet: Sequence[tuple[float, float, float]], foot: tuple[float, float, float]
+) -> float | None:
+    """How far ``foot`` stands below the plane through ``feet`` (z = a + b·x + c·y, least
+    squares), m, all in one frame; ``None`` with fewer than :data:`PLANE_MIN_FEET` feet or
+    feet in a line. The ground the other feet stand on, wherever the body is tilted."""
+    n = len(feet)
+    if n < PLANE_MIN_FEET:
+        return None
+    mx = sum(f[0] for f in feet) / n
+    my = sum(f[1] for f in feet) / n
+    mz = sum(f[2] for f in feet) / n
+    sxx = sum((f[0] - mx) ** 2 for f in feet)
+    syy = sum((f[1] - my) ** 2 for f in feet)
+    sxy = sum((f[0] - mx) * (f[1] - my) for f in feet)
+    sxz = sum((f[0] - mx) * (f[2] - mz) for f in feet)
+    syz = sum((f[1] - my) * (f[2] - mz) for f in feet)
+    det = sxx * syy - sxy * sxy
+    # The smaller eigenvalue of the centred second moments: the spread across the best line.
+    across = (sxx + syy) / 2 - math.hypot((sxx - syy) / 2, sxy)
+    if across / n < PLANE_SPREAD_M**2:
+        return None
+    b = (sxz * syy - syz * sxy) / det
+    c = (syz * sxx - sxz * sxy) / det
+    return mz + b * (foot[0] - mx) + c * (foot[1] - my) - foot[2]
 
 
 def segment_load(amps: float | None, length: float, next_angle: float | None) -> float | None:
@@ -382,6 +416,8 @@ class ContactEstimator:
 
 __all__ = [
     "MIN_SIN",
+    "PLANE_MIN_FEET",
+    "PLANE_SPREAD_M",
     "ContactEstimate",
     "ContactEstimator",
     "ContactModel",
@@ -390,5 +426,6 @@ __all__ = [
     "SensorModel",
     "Source",
     "StanceLoss",
+    "depth_below_plane",
     "segment_load",
 ]

@@ -59,10 +59,12 @@ def leg_state(
     confidence: float = 0.9,
     foot_error_m: float | None = None,
     foot_z: float = 0.0,
+    measured_foot: Vec3 | None = None,
 ) -> LegState:
     """Leg ``leg``'s state at ``t`` in ``phase``, its contact as its estimate says (the force
-    sensor's, believed ``confidence``), its foot ``foot_error_m`` from its goals' point and
-    planned at height ``foot_z``."""
+    sensor's, believed ``confidence``), its foot ``foot_error_m`` from its goals' point,
+    planned at height ``foot_z`` and where its joints put it, ``measured_foot`` (None:
+    unread)."""
     return LegState(
         t=t,
         source="leg",
@@ -71,7 +73,7 @@ def leg_state(
         phase=phase,
         progress=0.5,
         foot=(0.0, 0.0, foot_z),
-        measured_foot=None,
+        measured_foot=measured_foot,
         contact=contact,
         contact_source="fsr",
         load=(None, None),

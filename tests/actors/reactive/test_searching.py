@@ -254,3 +254,79 @@ def test_a_loss_seen_a_cycle_before_the_leg_reaches_is_its_reach_not_a_step_agai
     (req,) = requests(s.react(3.1 + hold, state(3.1 + hold, "stance", False, z=-0.29)))
     assert req.restep_leg == 2
     assert "stepped again" in s.reason
+
+
+def stand(s: Searching, t: float, feet: dict[int, tuple[float, float, float]]) -> None:
+    """Legs in stance, their joints putting their feet at ``feet``."""
+    for leg, foot in feet.items():
+        s.react(t, leg_state(t, leg, "stance", measured_foot=foot))
+
+
+OTHERS = {
+    0: (0.3, -0.25, -0.27),
+    1: (0.3, 0.25, -0.27),
+    3: (0.0, 0.35, -0.27),
+    5: (-0.3, 0.3, -0.27),
+}
+"""Four feet in stance on level ground (RM, leg 2, is the one that swings)."""
+
+
+def test_ground_found_lower_with_the_other_feet_as_low_is_no_hole() -> None:
+    # On 30° a swing the servos could not follow came down late, the body tilted over its
+    # feet: the plan's ground was 3 cm too high here, and so for the feet around it.
+    s = searching()
+    tilted = {leg: (x, y, z - 0.1 * y + 0.05 * x) for leg, (x, y, z) in OTHERS.items()}
+    stand(s, 1.98, tilted)
+    s.react(1.99, leg_state(1.99, 2, "search", measured_foot=(0.0, -0.35, -0.27 + 0.035)))
+    hole = SwingEnded(t=2.0, source="leg", leg=2, outcome="completed", ground_offset_m=-0.03)
+    s.react(2.0, hole)
+    assert not s.active
+
+
+def test_ground_found_lower_than_the_other_feet_stand_is_a_hole() -> None:
+    s = searching()
+    stand(s, 1.98, OTHERS)
+    s.react(1.99, leg_state(1.99, 2, "search", measured_foot=(0.0, -0.35, -0.30)))
+    hole = SwingEnded(t=2.0, source="leg", leg=2, outcome="completed", ground_offset_m=-0.03)
+    s.react(2.0, hole)
+    assert s.active
+    assert s.reason == "RM found ground 3 cm lower"
+
+
+def test_with_fewer_than_three_feet_in_stance_the_plan_judges() -> None:
+    s = searching()
+    stand(s, 1.98, {0: OTHERS[0], 1: OTHERS[1]})
+    stand(s, 1.0, {3: OTHERS[3], 5: OTHERS[5]})  # too old to say where they stand
+    s.react(1.99, leg_state(1.99, 2, "search", measured_foot=(0.0, -0.35, -0.27)))
+    hole = SwingEnded(t=2.0, source="leg", leg=2, outcome="completed", ground_offset_m=-0.03)
+    s.react(2.0, hole)
+    assert s.active
+
+
+def test_a_reach_no_lower_than_the_other_feet_stand_is_no_hole() -> None:
+    # The body tipped over its feet: RM lost its support and reached 3 cm down to where
+    # the feet around it stand (their plane tilted as much), then found the ground.
+    s = searching()
+    s.react(0.5, locomotion_state(0.5, "walking", gait="ripple"))
+    tilted = {leg: (x, y, z + 0.1 * y) for leg, (x, y, z) in OTHERS.items()}  # −0.305 at RM
+    level = (0.0, -0.35, -0.27)
+    stand(s, 1.0, tilted)
+    s.react(1.0, leg_state(1.0, 2, "stance", foot_z=-0.29, measured_foot=level))
+    s.react(1.3, leg_state(1.3, 2, "search", contact=False, foot_z=-0.29, measured_foot=level))
+    stand(s, 1.5, tilted)
+    low = (0.0, -0.35, -0.30)  # 3 cm down, 5 mm above the others' plane
+    s.react(1.5, leg_state(1.5, 2, "search", contact=False, foot_z=-0.32, measured_foot=low))
+    assert not s.active
+    stand(s, 1.6, tilted)
+    s.react(1.6, leg_state(1.6, 2, "stance", foot_z=-0.32, measured_foot=low))
+    assert not s.active
+    assert "lower" not in s.reason
+    # Level feet around it: the same reach is a hole.
+    stand(s, 2.0, OTHERS)
+    s.react(2.0, leg_state(2.0, 2, "stance", foot_z=-0.29, measured_foot=level))
+    s.react(2.3, leg_state(2.3, 2, "search", contact=False, foot_z=-0.29, measured_foot=level))
+    stand(s, 2.5, OTHERS)
+    deep = (0.0, -0.35, -0.30)
+    s.react(2.5, leg_state(2.5, 2, "search", contact=False, foot_z=-0.32, measured_foot=deep))
+    assert s.active
+    assert "reaching down" in s.reason

@@ -15,7 +15,11 @@ the downward direction and eventually in other directions" (6.7.3). Here:
   and found ground completes with a negative ground offset; one ``found_m``
   or more below the expected ground is a hole found, and the reflex is
   active for a moment (``found_m``: a foot pressed a few millimetres into
-  ground it did not feel at once, as an unloaded leg uphill, is no hole);
+  ground it did not feel at once, as an unloaded leg uphill, is no hole) —
+  if the foot also stands ``found_m`` below the plane of the other feet in
+  stance, where three or more stand: a body tilted over its feet lowers
+  the ground under a swing as much as under them (on 30°, a swing the
+  servos could not follow; docs/reflexes.md, "30°, traced");
 * **around**: a swing that found nothing within the depth (``no_contact``,
   believed by the leg's contact estimate) makes the reflex ask for the leg to
   be stepped again, forward by ``around_m``, then back by it
@@ -41,7 +45,8 @@ the downward direction and eventually in other directions" (6.7.3). Here:
   a "disappeared support", 5.4, in every gait). As for a swing, a foot that
   finds the ground again less than ``found_m`` below where it stood found no
   hole: the body rolled off it, and the reach gave it its load back — the
-  reflex is active once a reach goes deeper, or finds nothing.
+  reflex is active once a reach goes deeper, below the other feet's plane
+  too, or finds nothing.
 
 The early-contact stop of 6.7.3 is the leg's own adaptive swing.
 """
@@ -55,7 +60,7 @@ from pydantic import Field
 from whexar.actors.messages import LegState, LocomotionState, NoFoothold, SwingEnded
 from whexar.actors.reactive.reflex import Command, Reflex, ReflexParams
 from whexar.config import RobotConfig
-from whexar.kinematics.contact import StanceLoss
+from whexar.kinematics.contact import StanceLoss, depth_below_plane
 from whexar.robot import LEG_NAMES, N_LEGS
 from whexar.runtime.messages import Message
 
@@ -66,6 +71,9 @@ REACH_START_S = 0.05
 here: it holds the loss itself, counted from its own reading, a cycle or two apart. On 30°
 six of eleven activations in 600 s were legs stepped again in that cycle, their reach
 about to begin (docs/reflexes.md, "searching")."""
+FRESH_S = 0.05
+"""A leg's state older than this no longer says where its foot stands (a few control
+cycles)."""
 
 
 class SearchingParams(ReflexParams):
@@ -127,6 +135,8 @@ class Searching(Reflex):
         """A hole found keeps the reflex active until then (a spell on the timeline)."""
         self.reach = 0.0
         """How far it asked stance feet to reach down (0 in the ``halt_gaits``)."""
+        self.feet: dict[int, tuple[float, LegState]] = {}
+        """Per leg: its latest state and when it came."""
 
     def tick(self, t: float) -> Iterable[Command]:
         if self.found_until <= t:
@@ -140,6 +150,7 @@ class Searching(Reflex):
         if isinstance(msg, SwingEnded):
             return self._swing(t, msg)
         if isinstance(msg, LegState):
+            self.feet[msg.leg] = (t, msg)
             return self._leg(t, msg)
         if isinstance(msg, LocomotionState):
             self.gait = msg.gait
@@ -165,7 +176,11 @@ class Searching(Reflex):
                 self.halted.discard(leg)
                 if not self.halted:
                     out.append(self.request(t, halt=False, reason=f"{LEG_NAMES[leg]} found ground"))
-            if msg.outcome == "completed" and msg.ground_offset_m <= -p.found_m:
+            if (
+                msg.outcome == "completed"
+                and msg.ground_offset_m <= -p.found_m
+                and self._below_the_others(t, leg)
+            ):
                 self.active = True
                 self.found_until = t + FOUND_S
                 self.reason = (
@@ -209,7 +224,8 @@ class Searching(Reflex):
             if msg.phase == "stance" and not msg.contact and t - self.reach_t[i] < REACH_START_S:
                 return []  # its reach not begun yet
             if msg.phase == "search":
-                if depth >= self.params.found_m and i not in self.holes:
+                deep = depth >= self.params.found_m and self._below_the_others(t, i)
+                if deep and i not in self.holes:
                     self.holes.add(i)
                     self.active = True
                     self.reason = f"{LEG_NAMES[i]} lost its support in stance: reaching down"
@@ -217,7 +233,7 @@ class Searching(Reflex):
             del self.reaching[i]
             self.holes.discard(i)
             if msg.contact or msg.phase != "stance":
-                if msg.contact and depth >= self.params.found_m:
+                if msg.contact and depth >= self.params.found_m and self._below_the_others(t, i):
                     self.found_until = t + FOUND_S
                     self.reason = f"{LEG_NAMES[i]} found ground {depth * 100:.0f} cm lower"
                 self._settle(t)  # found, or its swing came first: that swing searches
@@ -232,6 +248,24 @@ class Searching(Reflex):
         self.searching.add(i)
         self.reason = f"{LEG_NAMES[i]} lost its support in stance: stepped again"
         return [self.request(t, restep_leg=i, reason=self.reason)]
+
+    def _below_the_others(self, t: float, leg: int) -> bool:
+        """Whether ``leg``'s foot stands ``found_m`` or more below the plane of the other
+        feet in stance (their joints' forward kinematics), where three or more stand; with
+        fewer, or its own foot unread, the plan's ground alone judges (True)."""
+        mine = self.feet.get(leg)
+        if mine is None or mine[1].measured_foot is None:
+            return True
+        feet = [
+            s.measured_foot
+            for i, (seen, s) in self.feet.items()
+            if i != leg
+            and s.phase == "stance"
+            and s.measured_foot is not None
+            and t - seen <= FRESH_S
+        ]
+        depth = depth_below_plane(feet, mine[1].measured_foot)
+        return depth is None or depth >= self.params.found_m
 
     def _settle(self, t: float) -> None:
         if not (self.searching or self.halted or self.holes) and self.found_until <= t:
