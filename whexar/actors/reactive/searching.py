@@ -99,7 +99,8 @@ class SearchingParams(ReflexParams):
     """A loss counts when the leg's contact estimate believes it at least this much."""
     found_m: float = Field(0.025, gt=0.0, le=0.1)
     """Ground found this far below the expected (a swing's), or below where a stance foot
-    stood (a reach's), is a hole: above what the ground itself gives (the flat's 0–9 mm;
+    stood (a reach's), and as far below the other stance feet's plane where they make one,
+    is a hole: above what the ground itself gives (the flat's 0–9 mm;
     on 30° swings end up to 2.0 cm lower, reaches up to 1.4 cm), half the 5 cm trench's
     (docs/reflexes.md, "searching")."""
 
@@ -224,8 +225,11 @@ class Searching(Reflex):
             if msg.phase == "stance" and not msg.contact and t - self.reach_t[i] < REACH_START_S:
                 return []  # its reach not begun yet
             if msg.phase == "search":
-                deep = depth >= self.params.found_m and self._below_the_others(t, i)
-                if deep and i not in self.holes:
+                if (
+                    i not in self.holes
+                    and depth >= self.params.found_m
+                    and self._below_the_others(t, i)
+                ):
                     self.holes.add(i)
                     self.active = True
                     self.reason = f"{LEG_NAMES[i]} lost its support in stance: reaching down"
