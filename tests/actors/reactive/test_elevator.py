@@ -74,13 +74,13 @@ def test_the_raise_is_kept_until_the_body_has_walked_past_what_blocked() -> None
     assert not e.active
 
 
-def leg(t: float, error_m: float | None, leg: int = 0) -> LegState:
+def leg(t: float, error_m: float | None, leg: int = 0, phase: str = "swing") -> LegState:
     return LegState(
         t=t,
         source="leg",
         leg=leg,
         cycle=0,
-        phase="swing",
+        phase=phase,
         progress=0.3,
         foot=(0.2, 0.2, -0.1),
         measured_foot=None,
@@ -123,3 +123,42 @@ def test_a_leg_that_cannot_tell_is_taken_as_blocked() -> None:
     e = elevator()
     e.react(1.0, ended(1.0, "blocked"))
     assert follow(e, 1.0, [None] * 30) == [pytest.approx(0.03)]
+
+
+def swings(e: Elevator, t0: float, peaks: list[float]) -> float:
+    """Unblocked swings of leg 0 from ``t0``, each lagging up to its peak, then a stance."""
+    t = t0
+    for peak in peaks:
+        for k in range(5):
+            t = round(t + 0.01, 9)
+            e.react(t, leg(t, peak * (k + 1) / 5))
+        t = round(t + 0.01, 9)
+        e.react(t, leg(t, 0.002, phase="stance"))
+    return t
+
+
+def test_a_swing_lagging_as_much_as_its_own_swings_do_is_not_held() -> None:
+    # On 30° the wave's swings lag 35–60 mm by themselves; LR's foot scraped the slope
+    # 61 mm behind its goal, its swings before lagging 55 mm: no block.
+    e = elevator()
+    t = swings(e, 0.0, [0.055])
+    assert e.held(0) == pytest.approx(0.068)
+    e.react(t, ended(t, "blocked"))
+    assert follow(e, t, [0.060, 0.061, 0.060] + [0.05] * 25) == []
+    assert e.pushed == 1
+    # A foot held back past its own lag is a block.
+    t = swings(e, t + 0.3, [0.055] * 3)
+    e.react(t, ended(t, "blocked"))
+    assert follow(e, t, [0.06 + 0.004 * k for k in range(10)]) == [pytest.approx(0.03)]
+
+
+def test_on_the_flat_held_m_decides_and_a_met_swing_teaches_nothing() -> None:
+    e = elevator()
+    t = swings(e, 0.0, [0.019] * 4)  # the tripod's own lag: 18–19 mm
+    assert e.held(0) == pytest.approx(0.034)
+    e.react(t, ended(t, "blocked"))
+    follow(e, t, [0.020] * 30)  # pushed: its 20 mm is its own lag, not learnt twice
+    t = swings(e, t + 0.3, [])  # … and that swing ends: it met something, nothing learnt
+    e.react(t + 0.01, leg(t + 0.01, 0.08))
+    e.react(t + 0.02, leg(t + 0.02, 0.002, phase="stance"))
+    assert e.lag[0] == pytest.approx(0.019)

@@ -21,9 +21,11 @@ and slower gaits make that take.
 the leg simply pushed away (6.7.2). A blocked swing is confirmed by the foot held
 back: within ``confirm_s`` of the contact, the leg's foot error (its
 :class:`~whexar.actors.messages.LegState` ``foot_error_m``, the servos' tracking
-error at the foot) reaches ``held_m``. A foot that goes on along its path pushed
-what it met: the swing is let be. A leg that cannot tell (its joints unread) is
-taken as blocked.
+error at the foot) reaches ``held_m``, and ``held_over_m`` beyond the leg's own
+usual lag in a swing (the largest foot error of each of its unblocked swings,
+a running mean over ``learn_swings``): on 30° the wave's swings lag 35–60 mm by
+themselves. A foot that goes on along its path pushed what it met: the swing
+is let be. A leg that cannot tell (its joints unread) is taken as blocked.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from pydantic import Field
 from whexar.actors.messages import LegState, LocomotionState, SwingEnded
 from whexar.actors.reactive.reflex import WALKING, Command, Reflex, ReflexParams
 from whexar.config import RobotConfig
+from whexar.robot import N_LEGS
 from whexar.runtime.messages import Message
 
 
@@ -57,6 +60,13 @@ class ElevatorParams(ReflexParams):
     """A foot error this large within ``confirm_s`` of the contact confirms a blocked
     swing, m: between the 27 mm of a foot pushing a 0.3 kg sill and the 42 mm of one held
     by a fixed sill (a swing's own tracking error reaches 21 mm; docs/reflexes.md)."""
+    held_over_m: float = Field(0.013, ge=0.0, le=0.2)
+    """… and this far beyond the leg's usual lag in an unblocked swing, m: on the flat a
+    fixed sill held the foot 21 mm beyond a swing's own 21 mm, a pushed one 6 mm; on 30°
+    the wave's swings lag 35–60 mm, and a foot scraping the slope 61 mm
+    (docs/reflexes.md, "A swing's own lag")."""
+    learn_swings: int = Field(5, ge=1, le=100)
+    """The unblocked swings a leg's usual lag is a running mean over."""
     confirm_s: float = Field(0.25, ge=0.0, le=2.0)
     """How long after the contact the foot error is watched, s; 0: every blocked swing
     fires at once (the thesis's elevator)."""
@@ -83,24 +93,55 @@ class Elevator(Reflex):
         """How far the body has walked since the last blocked swing, m."""
         self.walk_t: float | None = None
         """When the coordinator last said it walks."""
+        self.lag: list[float | None] = [None] * N_LEGS
+        """Per leg: its usual lag, the running mean of its unblocked swings' largest foot
+        error, m (None before its first)."""
+        self.swings = [0] * N_LEGS
+        """Per leg: the unblocked swings in that mean."""
+        self.peak: list[float | None] = [None] * N_LEGS
+        """Per leg in a swing: its largest foot error so far (None: not in a swing)."""
+        self.met = [False] * N_LEGS
+        """Per leg: its swing now met something (that swing's lag is not its own)."""
 
     def react(self, t: float, msg: Message) -> Iterable[Command]:
         if isinstance(msg, LocomotionState):
             self._walk(t, msg)
             return ()
         if isinstance(msg, LegState):
+            self._learn(msg)
             return self._watch(t, msg) if msg.leg in self.pending else ()
         if not isinstance(msg, SwingEnded) or msg.outcome != "blocked":
             return ()
+        self.met[msg.leg] = True
         if self.params.confirm_s <= 0.0:
             return self._blocked(t, msg.leg)
         self.pending.setdefault(msg.leg, (t, False))
         return ()
 
+    def _learn(self, s: LegState) -> None:
+        i, err = s.leg, s.foot_error_m
+        if s.phase == "swing":
+            peak = self.peak[i]
+            self.peak[i] = err if peak is None else peak if err is None else max(peak, err)
+            return
+        peak, self.peak[i] = self.peak[i], None
+        met, self.met[i] = self.met[i], False
+        if peak is None or met:
+            return
+        self.swings[i] += 1
+        lag = self.lag[i]
+        k = 1.0 / min(self.swings[i], self.params.learn_swings)
+        self.lag[i] = peak if lag is None else lag + k * (peak - lag)
+
+    def held(self, leg: int) -> float:
+        """The foot error that confirms ``leg``'s blocked swing, m."""
+        p, lag = self.params, self.lag[leg]
+        return p.held_m if lag is None else max(p.held_m, lag + p.held_over_m)
+
     def _watch(self, t: float, s: LegState) -> Iterable[Command]:
         since, seen = self.pending[s.leg]
         err = s.foot_error_m
-        if err is not None and err >= self.params.held_m:
+        if err is not None and err >= self.held(s.leg):
             del self.pending[s.leg]
             return self._blocked(t, s.leg)
         seen = seen or err is not None
