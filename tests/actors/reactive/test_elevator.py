@@ -5,6 +5,8 @@ went on) raises nothing."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import pytest
 
 from whexar.actors.messages import LegState, ReflexRequest, SwingEnded
@@ -91,7 +93,7 @@ def leg(t: float, error_m: float | None, leg: int = 0, phase: str = "swing") -> 
     )
 
 
-def follow(e: Elevator, t0: float, errors: list[float | None]) -> list[float | None]:
+def follow(e: Elevator, t0: float, errors: Sequence[float | None]) -> list[float | None]:
     """The leg's states every 10 ms from ``t0``, with these foot errors: what is asked."""
     out: list[float | None] = []
     for k, err in enumerate(errors):
