@@ -122,7 +122,8 @@ class Elevator(Reflex):
         i, err = s.leg, s.foot_error_m
         if s.phase == "swing":
             peak = self.peak[i]
-            self.peak[i] = err if peak is None else peak if err is None else max(peak, err)
+            if err is not None:
+                self.peak[i] = err if peak is None else max(peak, err)
             return
         peak, self.peak[i] = self.peak[i], None
         met, self.met[i] = self.met[i], False
