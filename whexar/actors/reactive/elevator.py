@@ -93,11 +93,11 @@ class Elevator(Reflex):
         """How far the body has walked since the last blocked swing, m."""
         self.walk_t: float | None = None
         """When the coordinator last said it walks."""
-        self.lag: list[float | None] = [None] * N_LEGS
+        self.lag = [0.0] * N_LEGS
         """Per leg: its usual lag, the running mean of its unblocked swings' largest foot
-        error, m (None before its first)."""
+        error, m."""
         self.swings = [0] * N_LEGS
-        """Per leg: the unblocked swings in that mean."""
+        """Per leg: the unblocked swings in that mean (none yet: ``held_m`` alone)."""
         self.peak: list[float | None] = [None] * N_LEGS
         """Per leg in a swing: its largest foot error so far (None: not in a swing)."""
         self.met = [False] * N_LEGS
@@ -130,14 +130,15 @@ class Elevator(Reflex):
         if peak is None or met:
             return
         self.swings[i] += 1
-        lag = self.lag[i]
-        k = 1.0 / min(self.swings[i], self.params.learn_swings)
-        self.lag[i] = peak if lag is None else lag + k * (peak - lag)
+        k = 1.0 / min(self.swings[i], self.params.learn_swings)  # the first: its own peak
+        self.lag[i] += k * (peak - self.lag[i])
 
     def held(self, leg: int) -> float:
         """The foot error that confirms ``leg``'s blocked swing, m."""
-        p, lag = self.params, self.lag[leg]
-        return p.held_m if lag is None else max(p.held_m, lag + p.held_over_m)
+        p = self.params
+        if self.swings[leg] == 0:
+            return p.held_m
+        return max(p.held_m, self.lag[leg] + p.held_over_m)
 
     def _watch(self, t: float, s: LegState) -> Iterable[Command]:
         since, seen = self.pending[s.leg]

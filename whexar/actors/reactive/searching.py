@@ -136,8 +136,8 @@ class Searching(Reflex):
         """A hole found keeps the reflex active until then (a spell on the timeline)."""
         self.reach = 0.0
         """How far it asked stance feet to reach down (0 in the ``halt_gaits``)."""
-        self.feet: dict[int, tuple[float, LegState]] = {}
-        """Per leg: its latest state and when it came."""
+        self.feet: dict[int, LegState] = {}
+        """Per leg: its latest state."""
 
     def tick(self, t: float) -> Iterable[Command]:
         if self.found_until <= t:
@@ -151,7 +151,7 @@ class Searching(Reflex):
         if isinstance(msg, SwingEnded):
             return self._swing(t, msg)
         if isinstance(msg, LegState):
-            self.feet[msg.leg] = (t, msg)
+            self.feet[msg.leg] = msg
             return self._leg(t, msg)
         if isinstance(msg, LocomotionState):
             self.gait = msg.gait
@@ -258,17 +258,17 @@ class Searching(Reflex):
         feet in stance (their joints' forward kinematics), where three or more stand; with
         fewer, or its own foot unread, the plan's ground alone judges (True)."""
         mine = self.feet.get(leg)
-        if mine is None or mine[1].measured_foot is None:
+        if mine is None or mine.measured_foot is None:
             return True
         feet = [
             s.measured_foot
-            for i, (seen, s) in self.feet.items()
+            for i, s in self.feet.items()
             if i != leg
             and s.phase == "stance"
             and s.measured_foot is not None
-            and t - seen <= FRESH_S
+            and t - s.t <= FRESH_S
         ]
-        depth = depth_below_plane(feet, mine[1].measured_foot)
+        depth = depth_below_plane(feet, mine.measured_foot)
         return depth is None or depth >= self.params.found_m
 
     def _settle(self, t: float) -> None:
