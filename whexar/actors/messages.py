@@ -630,6 +630,9 @@ class StepCommand(Message):
     where it finds it; 0: it stays where the ground was expected. ``reach_depth_m`` (a
     swing): its stance foot, if it loses the ground it stood on, reaches down this far
     for it while the walk goes on (:mod:`whexar.actors.locomotion.steps`); 0: it does not.
+    ``share_load`` (a swing or a stance): its stance shares the load with the other feet
+    by their force sensors (``contact.balance_gain_m_s``): the coordinator asks it where
+    the ground tilts ``contact.balance_tilt_deg`` or more.
 
     The wheels take their orders from :class:`BodyMotion`, every cycle.
     """
@@ -644,6 +647,7 @@ class StepCommand(Message):
     duty_factor: float = 0.5
     search_depth_m: float = 0.0
     reach_depth_m: float = 0.0
+    share_load: bool = False
 
 
 @message

@@ -225,17 +225,22 @@ class ContactSpec(Section):
     """A searching foot whose distance from its goal's point grew by this much since the
     search began is held by the ground it looks for: found, before the force sensor says
     so where the leg carries little load (the front legs uphill on 30°)."""
-    balance_gain_m_s: float = Field(default=0.0, ge=0.0, le=1e-3, allow_inf_nan=False)
+    balance_gain_m_s: float = Field(default=5e-5, ge=0.0, le=1e-3, allow_inf_nan=False)
     """A stance foot whose force sensor reads a count below the loaded feet's mean goes
-    down this fast, m/s (up, above it); 0, the default: the stance does not share its
-    load. 5e-5 took 30°'s searching from 142 to 5 activations per 10 minutes, and tipped
-    the body toward a trench's edge; with the elevator's distance hold, 30° fares worse
-    with it (the thesis's leg-load control, 6.8.1; docs/reflexes.md)."""
+    down this fast, m/s (up, above it), where the ground tilts (``balance_tilt_deg``); 0:
+    the stance never shares its load (the thesis's leg-load control, 6.8.1). On 30° it
+    stops the body rocking on a diagonal pair: heading hold's 8.2 activations per 10
+    minutes there go to 0 (docs/reflexes.md)."""
     balance_speed_m_s: float = Field(default=0.02, gt=0.0, le=0.2, allow_inf_nan=False)
     """… at most this fast."""
     balance_m: float = Field(default=0.02, ge=0.0, le=0.1, allow_inf_nan=False)
     """… and no further than this from where its stance began: walking 30° a foot hangs
     1–1.5 cm above the ground as the body rolls (docs/reflexes.md)."""
+    balance_tilt_deg: float = Field(default=20.0, ge=0.0, le=90.0, allow_inf_nan=False)
+    """… where the ground tilts this far from level or more (the body's low-passed tilt
+    less its pose, ``locomotion.tilt_filter_s``); 0: everywhere. On the flat the share
+    cost the snag and the deep trench their success (docs/reflexes.md); the default
+    course's 15° ramp stays below it."""
     touchdown_s: Positive = 0.25
     """A swing that ended with no contact is judged this long after its end: ``completed``
     if contact came meanwhile, else ``no_contact`` (the FSR's contact lags the swing's end

@@ -62,6 +62,7 @@ def step(
     height_m: float = 0.0,
     search_depth_m: float = 0.0,
     reach_depth_m: float = 0.0,
+    share_load: bool = False,
 ) -> StepCommand:
     return StepCommand(
         t=t,
@@ -74,6 +75,7 @@ def step(
         height_m=height_m,
         search_depth_m=search_depth_m,
         reach_depth_m=reach_depth_m,
+        share_load=share_load,
     )
 
 
@@ -636,31 +638,35 @@ def test_a_search_goes_on_through_settling_moves_one_after_another() -> None:
 
 
 def test_a_stance_foot_its_force_sensor_reads_lighter_than_the_others_goes_down() -> None:
-    def loads(t: float, rf: int, rf_on: bool) -> LegLoads:
+    def loads(t: float, rf: int) -> LegLoads:
         counts = (rf, 500, 500, 500, 500, 500)
-        contacts = (rf_on, True, True, True, True, True)
+        contacts = (True,) * 6
         return LegLoads(t=t, source="sensors", seq=None, counts=counts, contacts=contacts)
 
-    # The stance sharing its load (off by default): read through its force sensor, the
-    # foot goes down; read through the current, it holds.
+    # The stance sharing its load (where the coordinator asks it: on a slope): read through
+    # its force sensor, the foot goes down; read through the current, or not asked, it holds.
     gain = 5e-5
     cfg = RobotConfig.model_validate({"contact": {"balance_gain_m_s": gain}})
-    for source, on, lower in (("fsr", True, True), ("current", True, False)):
+    for source, share, lower in (
+        ("fsr", True, True),
+        ("current", True, False),
+        ("fsr", False, False),
+    ):
         leg, angles = placed(source, cfg)
         t, first = 1.1, True
         while t < 1.6:
             said = leg.cycle(
                 t,
                 states(t, angles, femur_a=LOADED_A),
-                loads=loads(t, 300, on),  # 200 counts under the loaded feet's mean
-                steps=(step("stance", 1.1, 2.0, NEUTRAL),) if first else (),
+                loads=loads(t, 300),  # 200 counts under the loaded feet's mean
+                steps=(step("stance", 1.1, 2.0, NEUTRAL, share_load=share),) if first else (),
             )
             follow_goals(angles, said)
             first, t = False, round(t + DT, 9)
         assert leg.foot is not None
         # Down at 5e-5 m/s per count of the 167 under the six feet's mean of 467.
         expected = NEUTRAL[2] - (gain * 167 * 0.5 if lower else 0.0)
-        assert leg.foot[2] == pytest.approx(expected, abs=0.0008), (source, on)
+        assert leg.foot[2] == pytest.approx(expected, abs=0.0008), (source, share)
 
 
 def lost_support(

@@ -10,7 +10,7 @@ from whexar.config import RobotConfig
 CFG = RobotConfig().contact
 DT = 0.01
 GAIN = 5e-5
-"""m/s per count: what the reflex campaign measured (off by default, docs/reflexes.md)."""
+"""m/s per count: the default, which the reflex campaign measured (docs/reflexes.md)."""
 
 
 def stance(*, gain: float = GAIN) -> Step:

@@ -529,3 +529,23 @@ def test_the_trochanter_follows_the_pitch_up_to_its_configured_limit() -> None:
     _tilted(planner, math.radians(-70.0))
     drive(planner, legs, 3.0, 3.05)
     assert planner.trochanter_rad == pytest.approx(-math.radians(CFG.locomotion.max_trochanter_deg))
+
+
+def test_the_stances_share_their_load_where_the_ground_tilts_enough() -> None:
+    # contact.balance_tilt_deg (20°): on 15° the steps are plain, on 25° every swing carries
+    # the share (for the stance it goes on into); the moves that settle the feet do not.
+    def steps_on(pitch_deg: float, roll_deg: float = 0.0) -> list[StepCommand]:
+        planner, legs = standing()
+        planner.tilt_measured = (math.radians(roll_deg), math.radians(pitch_deg))
+        planner.tilt_roll, planner.tilt_pitch = planner.tilt_measured
+        said = drive(planner, legs, T0, T0 + 3.0, {T0: cmd(vx_m_s=0.1)})
+        return [m for m in said if isinstance(m, StepCommand)]
+
+    assert CFG.contact.balance_tilt_deg == 20.0
+    assert not any(s.share_load for s in steps_on(-15.0))
+    tilted = steps_on(-25.0)
+    assert {s.kind for s in tilted if s.share_load} == {"swing"}
+    assert all(s.share_load for s in tilted if s.kind == "swing")
+    # Tilted across (roll) as well as along: the angle from level: 14.2° each way is 20°.
+    assert all(s.share_load for s in steps_on(-14.4, 14.4) if s.kind == "swing")
+    assert not any(s.share_load for s in steps_on(-14.0, 14.0))

@@ -103,6 +103,8 @@ class PlannerCore:
         )
         """The longest a touchdown is waited for: its wait and a search as deep as the
         highest step (a leg that says it awaits one for longer is not waited for)."""
+        self.share_below_cos = math.cos(math.radians(contact.balance_tilt_deg))
+        """The ground's tilt from level, as its cosine, from which stances share the load."""
         self.settle_t = -math.inf
         self.wheel_measured: list[float | None] = [None] * N_LEGS
         self.direction_measured: list[float | None] = [None] * N_LEGS
@@ -194,8 +196,15 @@ class PlannerCore:
                 duty_factor=self.gait.duty_factor,
                 search_depth_m=self.asks.search_depth() if kind == "swing" else 0.0,
                 reach_depth_m=self.asks.reach_depth() if kind == "swing" else 0.0,
+                share_load=kind in ("swing", "stance") and self.sloped(),
             )
         )
+
+    def sloped(self) -> bool:
+        """The ground tilts ``contact.balance_tilt_deg`` or more (:attr:`ground_tilt`): the
+        stances share their load there (:class:`StepCommand`'s ``share_load``)."""
+        roll, pitch = self.ground_tilt
+        return math.cos(roll) * math.cos(pitch) <= self.share_below_cos
 
     # ----------------------------------------------------------------- geometry
 

@@ -247,7 +247,7 @@ class LegController:
         if loads is not None:
             self.fsr_t = loads.t
             self.fsr_contact = loads.contacts[self.leg]
-            if self.spec.balance_gain > 0.0:  # the stance shares its load (off by default)
+            if self.spec.balance_gain > 0.0:  # for a stance asked to share its load
                 self.load_error = load_error(loads.counts, loads.contacts, self.leg)
 
     # ----------------------------------------------------------------- contact

@@ -38,7 +38,8 @@ leaves it to be judged when due. The leg says a touchdown is awaited
 (``LegState.touchdown_pending``), and the coordinator lifts no such foot.
 
 A stance can share the load ("the controller that controlled the leg
-loading", 6.8.1; off by default, ``contact.balance_gain_m_s``): a stance foot
+loading", 6.8.1; ``contact.balance_gain_m_s``, where the coordinator asks it
+with ``StepCommand.share_load``: on a slope): a stance foot
 whose force sensor reads fewer counts than the loaded feet's mean goes down,
 one that reads more goes up, at ``balance_gain`` per count of difference (at
 most ``balance_speed``), by at most ``balance_m`` from where its stance
@@ -191,7 +192,7 @@ def begin(
         shape,
         joint_space,
         touchdown_s=spec.touchdown_s,
-        balance_gain=spec.balance_gain,
+        balance_gain=spec.balance_gain if cmd.share_load else 0.0,
         balance_speed=spec.balance_speed,
         balance_m=spec.balance_m,
         search_depth=depth if math.isfinite(depth) else 0.0,
