@@ -209,5 +209,5 @@ def test_the_campaign_file_builds_every_run() -> None:
         "sweep sill",
         "sweep slope23",
     }
-    assert len([r for r in campaign.runs if r.label == "nominal"]) == 9
+    assert len([r for r in campaign.runs if r.label == "nominal"]) == 18
     assert campaign.report == "reflexes"
