@@ -229,8 +229,8 @@ class ContactSpec(Section):
     """A stance foot whose force sensor reads a count below the loaded feet's mean goes
     down this fast, m/s (up, above it), where the ground tilts (``balance_tilt_deg``); 0:
     the stance never shares its load (the thesis's leg-load control, 6.8.1). On 30° it
-    stops the body rocking on a diagonal pair: heading hold's 8.2 activations per 10
-    minutes there go to 0 (docs/reflexes.md)."""
+    stops the body rocking on a diagonal pair (measured in docs/reflexes.md, "On slopes
+    only")."""
     balance_speed_m_s: float = Field(default=0.02, gt=0.0, le=0.2, allow_inf_nan=False)
     """… at most this fast."""
     balance_m: float = Field(default=0.02, ge=0.0, le=0.1, allow_inf_nan=False)
