@@ -8,8 +8,10 @@ numbers scaled by 0.97, 1 and 1.04, one seed's circle failed), for the medians a
 their min–max.
 The other files are what ``whexar sim --experiments`` prints for them (the
 table, ``--json``) and the report it writes. They were written before the
-thesis's figures moved from code into their data file, and only the report's
-sentence naming where the code and the data live has changed since.
+thesis's figures moved from code into their data file; since, the report's
+sentence naming where the code and the data live has changed, and the table's
+summary (``agreement``: the median deviation, the rows more than 2× off, the
+ranges missed) was added to all three outputs.
 
 When an output is meant to change, rewrite them and review the diff:
 ``python tests/campaign/test_experiments_output.py``.
@@ -23,7 +25,7 @@ from pathlib import Path
 import pytest
 
 from whexar.campaign import Row
-from whexar.campaign.experiments import figures, report_markdown, table_text
+from whexar.campaign.experiments import figures, json_document, report_markdown, table_text
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 SETS = ("rough", "good", "perfect", "seeds")
@@ -38,7 +40,7 @@ def _outputs(name: str) -> dict[str, str]:
     """What the command prints and writes for the set's rows, by the golden file's name."""
     rows = _rows(name)
     found = figures(rows)
-    doc = {"experiments": [f.to_json() for f in found]}
+    doc = json_document(found)
     return {
         # As `--json` prints it, indented to keep the file's diffs readable: the text, not
         # the parsed values, is compared, so 10.0 against 10 would show.

@@ -35,7 +35,7 @@ default a new file under ``recordings/`` named after the scenario and the date;
 progress line on stderr): the report goes into ``--report DIR`` (default
 :data:`EXPERIMENTS_REPORT`), the table of the simulation's figures beside the
 thesis's is printed, or with ``--json`` one object
-``{"experiments": [{"name", "unit", "thesis", "sim"}, …]}``
+``{"experiments": [{"name", "unit", "thesis", "sim"}, …], "agreement": {…}}``
 (:mod:`whexar.campaign.experiments`).
 """
 
@@ -230,7 +230,7 @@ def summary_text(name: str, summary: dict[str, Any]) -> str:
 def _experiments(args: argparse.Namespace) -> int:
     """``--experiments``: the thesis's experiments as a campaign, the table of figures."""
     from whexar.campaign import load_campaign, run_campaign
-    from whexar.campaign.experiments import figures, table_text
+    from whexar.campaign.experiments import figures, json_document, table_text
     from whexar.cli.campaign import FAILED_STATUS, CampaignProgress, summary_lines
 
     alone = ("video", "view", "live", "record", "duration", "seed", "spread")
@@ -252,7 +252,7 @@ def _experiments(args: argparse.Namespace) -> int:
         print(line, file=sys.stderr)
     found = figures(result.rows)
     if args.json:
-        print_json({"experiments": [f.to_json() for f in found]})
+        print_json(json_document(found))
     else:
         print(table_text(found))
     return FAILED_STATUS if result.failed else 0

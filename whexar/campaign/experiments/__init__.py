@@ -11,7 +11,7 @@ on (6.7.6).
 
 What the thesis measured and how we explain each difference is data, beside
 the campaign: ``config/campaigns/reference/experiments.toml``. The code is in
-four parts, each importing only those above it:
+five parts, each importing only those above it:
 
 * :mod:`~whexar.campaign.experiments.metrics` — the experiments' own metrics
   (total current, speed up the plane, cost of transport, gait period …),
@@ -21,6 +21,8 @@ four parts, each importing only those above it:
 * :mod:`~whexar.campaign.experiments.figures` — finds the campaign's rows the
   reference names, judges each run's outcome (made it, held) and sets the
   simulation's figures beside the thesis's, with a note where they differ;
+* :mod:`~whexar.campaign.experiments.agreement` — the table summed up: the median
+  deviation, the figures more than 2× off, the ranges and bounds missed;
 * :mod:`~whexar.campaign.experiments.plots` and
   :mod:`~whexar.campaign.experiments.report` — the plots, the table and
   ``experiments.md``.
@@ -29,6 +31,7 @@ May import: what :mod:`whexar.campaign` may (the simulation and everything below
 it) and the campaign's own modules; never the command line or the benches.
 """
 
+from whexar.campaign.experiments.agreement import Agreement, agreement
 from whexar.campaign.experiments.figures import (
     SLOPE_KEY,
     TROCHANTER_KEY,
@@ -60,6 +63,7 @@ from whexar.campaign.experiments.reference import (
     reference,
 )
 from whexar.campaign.experiments.report import (
+    json_document,
     report_markdown,
     table_markdown,
     table_text,
@@ -70,14 +74,17 @@ __all__ = [
     "REFERENCE_PATH",
     "SLOPE_KEY",
     "TROCHANTER_KEY",
+    "Agreement",
     "Figure",
     "Reference",
+    "agreement",
     "circle_reckoned_return_m",
     "circle_return_m",
     "commanded_speed",
     "figures",
     "gait_period_s",
     "held",
+    "json_document",
     "load_reference",
     "made_it",
     "parse_reference",

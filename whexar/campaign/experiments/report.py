@@ -11,8 +11,9 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, Final
 
+from whexar.campaign.experiments.agreement import FAR_RATIO, Agreement, Compared, agreement
 from whexar.campaign.experiments.figures import (
     Figure,
     SimValue,
@@ -78,6 +79,44 @@ def table_markdown(found: Sequence[Figure]) -> str:
     return "\n".join(lines)
 
 
+def _compared(c: Compared, ratio: bool = False) -> str:
+    """``name: sim against thesis unit (how far)``: as sim / thesis (×0.27) or as the
+    relative deviation (8 % off)."""
+    f = c.figure
+    unit = f.unit if f.unit in ("°", "%", "") else f" {f.unit}"
+    how = f"×{c.ratio:.2g}" if ratio else f"{c.deviation * 100:.0f} % off"
+    return f"{f.name}: {format_value(f.sim)} against {format_value(f.thesis)}{unit} ({how})"
+
+
+def agreement_lines(a: Agreement, bullet: str = "") -> list[str]:
+    """The table summed up (:mod:`~whexar.campaign.experiments.agreement`), a sentence a
+    line, each after ``bullet``; the rows it names indented under theirs."""
+    sub = "  " + bullet if bullet else "  "
+    median = a.median_deviation
+    lines = [
+        f"{bullet}{len(a.numbers)} figures with one thesis number (not 0) to compare with:"
+        + (" none." if median is None else f" median deviation {median * 100:.1f} %."),
+        f"{bullet}{len(a.far_off)} more than {FAR_RATIO:g}× off" + (":" if a.far_off else "."),
+        *(sub + _compared(c, ratio=True) for c in a.far_off),
+        f"{bullet}{len(a.ranges)} ranges and bounds, {len(a.ranges) - len(a.outside)} inside"
+        + ("; outside:" if a.outside else "."),
+        *(sub + _compared(c) for c in a.outside),
+    ]
+    if a.without_value:
+        lines.append(f"{bullet}{len(a.without_value)} with no number from the simulation:")
+        lines += [sub + f.name for f in a.without_value]
+    return lines
+
+
+def json_document(found: Sequence[Figure]) -> dict[str, Any]:
+    """What ``whexar sim --experiments --json`` prints: ``{"experiments": [row, …],
+    "agreement": {…}}`` (:meth:`Figure.to_json`, :meth:`Agreement.to_json`)."""
+    return {
+        "experiments": [f.to_json() for f in found],
+        "agreement": agreement(found).to_json(),
+    }
+
+
 def table_text(found: Sequence[Figure]) -> str:
     """The figures for the terminal: name, thesis, sim and unit, one a line; over seeds,
     the sim's median and its min–max."""
@@ -92,7 +131,7 @@ def table_text(found: Sequence[Figure]) -> str:
             f"{f.name:<{width}}  {format_value(f.thesis):>10}  {format_value(f.sim):>13}"
             f"{spread}  {f.unit}"
         )
-    return "\n".join(lines)
+    return "\n".join([*lines, "", *agreement_lines(agreement(found))])
 
 
 def report_markdown(
@@ -130,6 +169,14 @@ def report_markdown(
         "",
         *_seeds_paragraph(found, rows),
         table_markdown(found),
+        "",
+        "## Agreement with the thesis",
+        "",
+        "The table summed up: the deviation is |sim − thesis| / |thesis|; for a range or a"
+        " bound, 0 inside it and otherwise the distance to the end it misses, relative to"
+        " that end. A figure of 0 (a direction) has no relative deviation and is left out.",
+        "",
+        *agreement_lines(agreement(found), bullet="- "),
         "",
     ]
     if failed:
@@ -184,8 +231,10 @@ def write_report(rows: Sequence[Row], out_dir: str | Path) -> list[Path]:
 
 __all__ = [
     "IMG_DIR",
+    "agreement_lines",
     "format_spread",
     "format_value",
+    "json_document",
     "report_markdown",
     "seeds_of",
     "table_markdown",
