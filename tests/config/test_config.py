@@ -257,6 +257,20 @@ def test_partial_files_keep_every_problem_with_its_key_path(tmp_path: Path) -> N
     assert "hysteresis" in found["fsr.contact_off_counts"]
 
 
+def test_position_gains_are_register_values_for_positioned_joints(tmp_path: Path) -> None:
+    found = _load_problems(tmp_path, "[joints.coxa]\ngains = { p = 20000, x = 1 }\n")
+    assert "less than or equal to 16383" in found["joints.coxa.gains.p"]
+    assert "allowed here: p, i, d" in found["joints.coxa.gains.x"]
+    found = _load_problems(tmp_path, "[joints.wheel]\ngains = { p = 900 }\n")
+    assert "velocity control" in found["joints.wheel.gains"]
+    path = tmp_path / "ok.toml"
+    path.write_text("[joints.femur]\ngains = { i = 40 }\n")
+    femur = load_config(path).joints.femur
+    assert femur.gains is not None
+    assert femur.gains.registers() == {"position_i_gain": 40}
+    assert femur.min_deg == RobotConfig().joints.femur.min_deg  # the rest stays
+
+
 def test_the_schema_follows_the_merge_rule() -> None:
     schema = config_schema()
     defs = schema["$defs"]
@@ -268,7 +282,14 @@ def test_the_schema_follows_the_merge_rule() -> None:
     joints = target(schema["properties"]["joints"])
     femur = target(joints["properties"]["femur"])
     assert "required" not in femur  # [joints.femur] with only min_deg is a valid file
-    assert set(femur["properties"]) == {"model", "min_deg", "max_deg", "endless", "length_mm"}
+    assert set(femur["properties"]) == {
+        "model",
+        "min_deg",
+        "max_deg",
+        "endless",
+        "length_mm",
+        "gains",
+    }
     stances = schema["properties"]["stances"]
     assert "required" not in target(stances["properties"]["high"])  # a preset, partly changed
     assert set(target(stances["additionalProperties"])["required"]) == {"reach_mm", "height_mm"}

@@ -123,6 +123,32 @@ def test_the_gears_hold_a_load_beyond_the_motors_torque(motors: MotorSource, hol
         assert moved > 0.5  # running away
 
 
+def _held_error(world: SimWorld, chain: ServoChain, sid: int, seconds: float) -> float:
+    """How far joint ``sid`` gives way (rad) under 2 N·m after ``seconds``."""
+    joint = world.by_servo[sid]
+    q0 = world.q[joint.index]
+    world.data.qfrc_applied[joint.dadr] = -2.0
+    t0 = chain.servos[sid].time
+    for k in range(1, round(seconds / 0.01) + 1):
+        for s in chain.servos.values():
+            s.advance(t0 + k * 0.01)
+    return float(q0 - world.q[joint.index])
+
+
+def test_a_position_i_gain_takes_the_error_of_a_held_load_away() -> None:
+    """Position P Gain alone holds a load with an error (the coxa: 2 N·m without the gears'
+    help, BAM's m1); Position I Gain (e-manual: KPI = I/65 536 on the error summed each
+    millisecond) winds it away, D Gain alone changes nothing at rest."""
+    p_alone = _held_error(*_held_world("bam-m1")[:2], sid=1, seconds=1.0)
+    assert math.radians(1) < p_alone < math.radians(12)
+    world, chain, _ = _held_world("bam-m1")
+    chain.servos[1].set_register("position_d_gain", 200)
+    assert _held_error(world, chain, 1, 1.0) == pytest.approx(p_alone, rel=0.05)
+    world, chain, _ = _held_world("bam-m1")
+    chain.servos[1].set_register("position_i_gain", 2000)
+    assert abs(_held_error(world, chain, 1, 1.0)) < 0.1 * p_alone
+
+
 def test_present_current_is_the_motor_torque_over_kt() -> None:
     world, chain, _ = _held_world()
     servo = chain.servos[FEMUR]

@@ -77,6 +77,7 @@ from whexar.config.parts import (
     JointSpec,
     JointsSpec,
     LegSpec,
+    PositionGains,
     RobotSpec,
     ServoModelSpec,
 )
@@ -106,6 +107,7 @@ __all__ = [
     "JointsSpec",
     "LegSpec",
     "LocomotionSpec",
+    "PositionGains",
     "RecordingSpec",
     "ReflexEntry",
     "RobotConfig",

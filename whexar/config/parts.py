@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import (
     Field,
@@ -85,6 +85,29 @@ def default_servo_models() -> dict[ServoModelName, ServoModelSpec]:
     }
 
 
+GainValue = Annotated[int, Field(strict=True, ge=0, le=16383)]
+"""A gain register's value: 0…16 383 (e-manual, MX (2.0): Position D/I/P Gain)."""
+
+
+class PositionGains(Section):
+    """The servo's position controller, in register units (e-manual, MX (2.0): Position D
+    Gain (80), I (82), P (84); KPD = D/16, KPI = I/65 536, KPP = P/128). The thesis's leg
+    controller sets them (5.4) and gives no values. A gain left out stays the servo's own;
+    they are RAM, so start-up writes them, and again after a servo reboots."""
+
+    p: GainValue | None = None
+    """Position P Gain (84); the servo's initial value is 850."""
+    i: GainValue | None = None
+    """Position I Gain (82); initial 0."""
+    d: GainValue | None = None
+    """Position D Gain (80); initial 0."""
+
+    def registers(self) -> dict[str, int]:
+        """The gains given, by register name (``position_p_gain`` …)."""
+        named = {"position_p_gain": self.p, "position_i_gain": self.i, "position_d_gain": self.d}
+        return {name: v for name, v in named.items() if v is not None}
+
+
 class JointSpec(Section):
     """One joint of every leg: its servo, range and segment (Table 5.2)."""
 
@@ -97,6 +120,8 @@ class JointSpec(Section):
     """Continuous rotation (the wheel), no limits."""
     length_mm: NonNegative
     """Distance to the next joint, or to the ground for the wheel (Table 5.2)."""
+    gains: PositionGains | None = None
+    """Its position controller's gains; absent: the servo's own (:class:`PositionGains`)."""
 
     @property
     def limits_rad(self) -> tuple[float, float] | None:
@@ -108,6 +133,14 @@ class JointSpec(Section):
     def problems(self, at: str) -> list[Problem]:
         found: list[Problem] = []
         if self.endless:
+            if self.gains is not None and self.gains.registers():
+                found.append(
+                    Problem(
+                        f"{at}.gains",
+                        self.gains.model_dump(exclude_none=True),
+                        "an endless joint runs in velocity control: position gains do nothing",
+                    )
+                )
             for key in ("min_deg", "max_deg"):
                 if getattr(self, key) is not None:
                     found.append(

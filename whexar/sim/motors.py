@@ -243,6 +243,14 @@ PWM_LIMIT: Final = 885
 KPP_DIVISOR: Final = 128
 """Position P Gain (84) / 128 = KPP (e-manual, MX (2.0), "Position PID Gain")."""
 TICKS_PER_RAD: Final = TICKS_PER_REV / (2 * math.pi)
+KPD_DIVISOR: Final = 16
+KPI_DIVISOR: Final = 65536
+"""Position D Gain (80) / 16 = KPD, Position I Gain (82) / 65 536 = KPI (e-manual, MX (2.0),
+"Position PID Gain")."""
+POSITION_PERIOD_S: Final = 0.001
+"""The time base of the position loop's D and I terms: the firmware's 1 kHz control
+period. The e-manual gives the gains' scales, not their time base; this is an
+**estimate**, the period the velocity loop's integral is counted in here too."""
 
 
 def position_duty_per_rad(p_gain: int) -> float:
@@ -256,14 +264,29 @@ def position_duty_per_rad(p_gain: int) -> float:
     return p_gain / KPP_DIVISOR * TICKS_PER_RAD / PWM_LIMIT
 
 
+def position_id_duty(i_gain: int, d_gain: int) -> tuple[float, float]:
+    """Duty per radian·period of summed error (I) and per rad/s of the error's rate (D)
+    for Position I Gain (82) = ``i_gain`` and D Gain (80) = ``d_gain``.
+
+    PWM = KPI · Σ error in ticks, one term a control period, + KPD · the error's change
+    in ticks over a period (:data:`POSITION_PERIOD_S`). Both are 0 at the initial gains.
+    """
+    ki = i_gain / KPI_DIVISOR * TICKS_PER_RAD / PWM_LIMIT
+    kd = d_gain / KPD_DIVISOR * TICKS_PER_RAD * POSITION_PERIOD_S / PWM_LIMIT
+    return ki, kd
+
+
 __all__ = [
     "DATASHEETS",
     "DATASHEET_MOTORS",
     "DEFAULT_MOTORS",
+    "KPD_DIVISOR",
+    "KPI_DIVISOR",
     "KPP_DIVISOR",
     "M1_MOTORS",
     "MAX_DUTY",
     "MOTORS",
+    "POSITION_PERIOD_S",
     "PWM_LIMIT",
     "Datasheet",
     "GearFriction",
@@ -272,4 +295,5 @@ __all__ = [
     "from_datasheet",
     "motors",
     "position_duty_per_rad",
+    "position_id_duty",
 ]

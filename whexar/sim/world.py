@@ -84,6 +84,7 @@ from whexar.sensors.imu_emulator import FakeLsm9ds1
 from whexar.sim.motors import (
     DEFAULT_MOTORS,
     MAX_DUTY,
+    POSITION_PERIOD_S,
     PWM_LIMIT,
     TICKS_PER_RAD,
     GearFriction,
@@ -91,6 +92,7 @@ from whexar.sim.motors import (
     MotorSource,
     motors,
     position_duty_per_rad,
+    position_id_duty,
 )
 from whexar.sim.power import BenchSupply, Supply, supply_amps
 from whexar.sim.terrain import GROUND_FRICTION, ROLLING_RAD_S, ROLLING_TRACTION
@@ -363,6 +365,11 @@ class SimWorld:
         )
         """Torque on, velocity mode, goal, top speed, acceleration: :meth:`_orders`' lists."""
         self._kp, self._kvp, self._kvi = np.zeros(n), np.zeros(n), np.zeros(n)
+        self._kpi, self._kpd = np.zeros(n), np.zeros(n)
+        self._pid = False
+        """Whether any joint's Position I or D Gain is set (else the loop is P alone)."""
+        self._sum = np.zeros(n)
+        """The position loop's summed error (rad·periods), for Position I Gain."""
         self._volts = np.zeros(n)
         self._volts_seen: list[float] = []
         self._desired, self._desired_v = np.zeros(n), np.zeros(n)
@@ -601,6 +608,7 @@ class SimWorld:
                 self._read_gains(self.joints[k])
                 if not drive.torque:
                     self._integral[k] = 0.0
+                    self._sum[k] = 0.0
             self._drives = drives
             self._goal, self._vmax = np.array(goal), np.array(vmax)
             if changed:
@@ -634,6 +642,10 @@ class SimWorld:
         self._kp[k] = position_duty_per_rad(reg("position_p_gain").decode(table))
         self._kvp[k] = reg("velocity_p_gain").decode(table) / KVP_DIVISOR
         self._kvi[k] = reg("velocity_i_gain").decode(table) / KVI_DIVISOR
+        self._kpi[k], self._kpd[k] = position_id_duty(
+            reg("position_i_gain").decode(table), reg("position_d_gain").decode(table)
+        )
+        self._pid = bool(self._kpi.any() or self._kpd.any())
 
     def _control(self, q: np.ndarray, w: np.ndarray) -> np.ndarray:
         """The firmware and the motor of every servo for one step: the joints' torques.
@@ -664,7 +676,14 @@ class SimWorld:
         free = self._velocity & (np.abs(duty_velocity) < MAX_DUTY)  # no wind-up saturated
         self._integral = np.where(free, stepped, self._integral)
         lag = self._desired - q
-        duty = np.where(self._velocity_mode, duty_velocity, self._kp * lag)
+        duty_position = self._kp * lag
+        if self._pid:  # Position I and D Gain (e-manual's PID; 0 unless configured)
+            summed = self._sum + lag * (h / POSITION_PERIOD_S)
+            duty_position = duty_position + self._kpi * summed + self._kpd * (v - w)
+            # No wind-up while saturated, as the velocity loop above.
+            free = self._position & (np.abs(duty_position) < MAX_DUTY)
+            self._sum = np.where(free, summed, self._sum)
+        duty = np.where(self._velocity_mode, duty_velocity, duty_position)
         duty = np.minimum(np.maximum(duty, -MAX_DUTY), MAX_DUTY)
         # BAM's motor: τ = kt·V/R − kt²·ω/R at the output shaft; torque off: coasting.
         tau: np.ndarray = (duty * self._drive_gain - self._emf_gain * w) * self._on_f

@@ -338,6 +338,45 @@ def test_overload_is_rebooted_restored_and_its_goal_held(chain: ServoChain) -> N
     assert alerts
 
 
+def test_a_rebooted_servo_gets_its_configured_gains_again(
+    chain: ServoChain, tmp_path: Path
+) -> None:
+    # A reboot sets RAM back to its initial values, the position gains with it.
+    config = tmp_path / "gains.toml"
+    config.write_text("[joints.tibia]\ngains = { p = 1700, d = 40 }\n")
+    tibia = servo_id(0, "tibia")
+    inject(
+        chain,
+        Fault(kind="hardware_error", ids=[tibia], bits=["overload"], on="sync_write", count=4),
+    )
+    p_gain = ct.MODELS["MX-64"].register("position_p_gain").address
+    written: list[float] = []  # when the tibia's Position P Gain was written
+    chain.hooks.append(
+        lambda _c, t, packets: written.extend(
+            t
+            for p in packets
+            if p.instruction == Instruction.WRITE and p.id == tibia and p.params[0] == p_gain
+        )
+    )
+
+    async def scenario(h: Harness) -> None:
+        await h.wait_for(ServoStates)
+        await h.feed("goals", goal(0, TIBIA, 0.3))
+        await h.wait_for(ServoRestored, timeout=1.0)
+        assert table(chain, tibia, "position_p_gain") == 1700
+        assert table(chain, tibia, "position_d_gain") == 40
+        assert table(chain, tibia, "torque_enable") == 1
+
+    result = run(graph({"config": str(config)}), scenario)
+    assert result.exit_code == 0
+    assert_clean_bus(result)
+    events = servo_events(result, tibia)
+    assert names(events) == ["HardwareFault", "ServoRebooted", "ServoRestored"]
+    # Written at start-up, and again after the reboot had put 850 back.
+    assert len(written) == 2
+    assert written[0] < events[1].t <= written[1]
+
+
 def test_voltage_sag_is_a_warning_the_servo_keeps_torque_and_it_clears(
     chain: ServoChain,
 ) -> None:

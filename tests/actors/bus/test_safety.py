@@ -323,6 +323,26 @@ def test_a_second_start_under_torque_turns_no_torque_off_and_writes_no_eeprom(
             assert table(chain, sid, "goal_position") == g
 
 
+def test_configured_gains_reach_the_servos_under_torque(chain: ServoChain, tmp_path: Any) -> None:
+    path = tmp_path / "gains.toml"
+    path.write_text('[bus]\non_stop = "hold"\n\n[joints.coxa]\ngains = { p = 3400, i = 8 }\n')
+    config = str(path)
+    coxas = [servo_id(leg, "coxa") for leg in range(6)]
+    run(graph({"config": config}), duration=0.3)
+    for sid in chain.servos:
+        p, i = table(chain, sid, "position_p_gain"), table(chain, sid, "position_i_gain")
+        assert (p, i) == ((3400, 8) if sid in coxas else (850, 0))
+    # A second start finds them set and writes nothing; one servo reset (a power cycle
+    # of its RAM) gets its gains again, and nobody's torque goes off.
+    chain.servos[coxas[3]].set_register("position_p_gain", 850)
+    seen = packets_of(chain)
+    run(graph({"config": config}), duration=0.3)
+    gains = [p for _, p in seen if p.instruction == Instruction.WRITE and p.params[0] == 84]
+    assert [p.id for p in gains] == [coxas[3]]
+    assert torque_off_writes(seen) == []
+    assert table(chain, coxas[3], "position_p_gain") == 3400
+
+
 def test_only_servos_whose_eeprom_differs_lose_torque_at_start(
     chain: ServoChain, tmp_path: Any
 ) -> None:

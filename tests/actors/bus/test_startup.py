@@ -13,9 +13,10 @@ from whexar.actors.bus.servos import (
     Servo,
     servo_table,
 )
-from whexar.actors.bus.startup import eeprom_diff, model_mismatches, plan_start
+from whexar.actors.bus.startup import eeprom_diff, gains_diff, model_mismatches, plan_start
+from whexar.bus import control_table as ct
 from whexar.bus.sdk import COMM_SUCCESS, Reply
-from whexar.config import RobotConfig
+from whexar.config import RobotConfig, parse_config
 from whexar.robot import servo_id
 
 CFG = RobotConfig()
@@ -36,6 +37,9 @@ def surveyed(servo: Servo, **regs: int) -> dict[str, int]:
         "torque_enable": 0,
         "hardware_error_status": 0,
         "bus_watchdog": 0,
+        "position_d_gain": 0,
+        "position_i_gain": 0,
+        "position_p_gain": 850,
         "goal_position": 2048,
         "present_position": 2048,
         **regs,
@@ -108,3 +112,24 @@ def test_a_servo_of_another_model_is_named() -> None:
     assert wrong == (
         "servo 2 (RF trochanter) is a MX-64 (model 311); the configuration says MX-106 (model 321)"
     )
+
+
+def test_configured_gains_are_written_where_they_differ_and_keep_torque_on() -> None:
+    cfg = parse_config({"joints": {"coxa": {"gains": {"p": 3400, "d": 16}}}})
+    table = sorted(servo_table(cfg).values(), key=lambda s: s.id)
+    coxas = [s.id for s in table if s.joint == 0]
+    mx64 = ct.MODELS["MX-64"]
+    p_gain, d_gain = mx64.register("position_p_gain"), mx64.register("position_d_gain")
+    coxa = table[coxas[0] - 1]
+    assert coxa.gains == ((p_gain, 3400), (d_gain, 16))
+    assert gains_diff(coxa, surveyed(coxa)) == [(p_gain, 3400), (d_gain, 16)]
+    assert gains_diff(coxa, surveyed(coxa, position_d_gain=16)) == [(p_gain, 3400)]
+    femur = table[servo_id(0, "femur") - 1]
+    assert femur.gains == ()  # not configured: the servo keeps its own
+    # A robot standing under torque: the gains are RAM, written under torque.
+    survey = {s.id: surveyed(s, torque_enable=1) for s in table}
+    survey[coxas[1]] |= {"position_p_gain": 3400, "position_d_gain": 16}  # already set
+    plan = plan_start(table, survey, RDT)
+    assert sorted(plan.gains) == [c for c in coxas if c != coxas[1]]
+    assert plan.changes == {}
+    assert plan.holding == {s.id for s in table}

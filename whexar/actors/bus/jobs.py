@@ -189,6 +189,24 @@ def configure_job(
     return configure
 
 
+def gains_job(
+    gains: Mapping[int, Sequence[Change]], names: Mapping[int, str]
+) -> Callable[[DxlBus], list[str]]:
+    """Each servo's position gains (RAM: its torque stays as it is); the problems (named
+    by ``names``)."""
+
+    def write(bus: DxlBus) -> list[str]:
+        problems = []
+        for sid, diff in gains.items():
+            for reg, value in diff:
+                reply = bus.write(sid, reg, value)
+                if not reply.ok or reply.error & ~ALERT:
+                    problems.append(f"{names[sid]}: writing {reg.name} = {value} failed")
+        return problems
+
+    return write
+
+
 def hold_job(moved: Mapping[int, int], wheels: Sequence[int]) -> Callable[[DxlBus], None]:
     """The position goals that had to change, and zero speed for ``wheels``."""
     goals = {sid: _pack_i32(v) for sid, v in moved.items()}
@@ -248,7 +266,8 @@ def restore_job(
     holds.
 
     EEPROM is read first and written only where it differs (a reboot keeps it);
-    Bus Watchdog, goal and torque are RAM, lost in a reboot: written again."""
+    Bus Watchdog, position gains, goal and torque are RAM, lost in a reboot: written
+    again."""
     sid = servo.id
 
     def restore(bus: DxlBus) -> bool:
@@ -262,6 +281,8 @@ def restore_job(
                 bus.write(sid, reg, value)
         if bus.read(sid, BUS_WATCHDOG).value == WATCHDOG_ERROR:
             bus.write(sid, BUS_WATCHDOG, 0)
+        for reg, value in servo.gains:
+            bus.write(sid, reg, value)
         if goal is not None:
             bus.write(sid, servo.goal_register, goal)
         for _ in range(torque_retries):

@@ -61,6 +61,7 @@ from whexar.actors.bus.jobs import (
     cycle_job,
     enable_job,
     fast_probe_job,
+    gains_job,
     hold_job,
     park_job,
     ping_job,
@@ -248,6 +249,11 @@ class BusScheduler(Actor):
         if plan.changes:
             names = {sid: self.servos[sid].name for sid in plan.changes}
             problems = await owner.call(configure_job(plan.changes, names))
+            if problems:
+                raise DeviceError("servo set-up failed: " + "; ".join(problems))
+        if plan.gains:
+            names = {sid: self.servos[sid].name for sid in plan.gains}
+            problems = await owner.call(gains_job(plan.gains, names))
             if problems:
                 raise DeviceError("servo set-up failed: " + "; ".join(problems))
         await self._detect_fast(owner, "start-up", report=True)

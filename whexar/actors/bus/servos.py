@@ -80,6 +80,9 @@ class Servo:
     """Velocity Limit (44) in velocity units, read at start-up (the wheel's clamp)."""
     shutdown: int = DEFAULT_SHUTDOWN
     """Shutdown (63): the error bits that latch and turn torque off (read at start-up)."""
+    gains: tuple[tuple[ct.Register, int], ...] = ()
+    """The position gains the configuration sets (``joints.*.gains``), each register with
+    its value; empty: the servo keeps its own."""
     current_unit: float = field(init=False)
     """A per unit of Present Current (Present Load's unit on the MX-28)."""
 
@@ -130,5 +133,9 @@ def servo_table(cfg: RobotConfig) -> dict[int, Servo]:
                 hi_tick,
                 JOINT_NAMES[j] in CRITICAL_JOINTS,
                 model.register("velocity_limit").initial or 0,
+                gains=tuple(
+                    (model.register(name), value)
+                    for name, value in (joint.gains.registers() if joint.gains else {}).items()
+                ),
             )
     return servos

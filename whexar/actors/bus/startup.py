@@ -3,15 +3,17 @@
 Start-up reads before it writes. It pings every configured servo (waiting
 up to ``bus.boot_timeout_s`` for servos still booting) and checks its model
 (:func:`model_mismatches`), then reads each servo's Return Delay Time,
-Operating Mode, Shutdown, Torque Enable, Velocity Limit, Bus Watchdog and
-goal in one Sync Read (:data:`SURVEY`). From that survey :func:`plan_start`
+Operating Mode, Shutdown, Torque Enable, Velocity Limit, Bus Watchdog,
+position gains and goal in one Sync Read (:data:`SURVEY`). From that survey :func:`plan_start`
 makes the :class:`StartPlan`: only a servo whose EEPROM settings differ from
 the configuration has its torque turned off, and only the values that differ
 are written (:func:`eeprom_diff`): a robot standing under torque keeps
 standing through a restart. A servo already under torque keeps its goal
 (brought within the limits); the others get their present position
 (likewise) and torque on. A Bus Watchdog error left by a host that stopped
-without stopping the servos is reported and cleared.
+without stopping the servos is reported and cleared. Position gains the
+configuration sets (``joints.*.gains``) are written where they differ
+(:func:`gains_diff`): RAM, so under torque, before any goal is written.
 
 These are plain functions of the survey's values; the shell does the port
 work (and the retries of torque-on) and publishes.
@@ -41,6 +43,9 @@ SURVEY: Final = ct.block(
         "torque_enable",
         "hardware_error_status",
         "bus_watchdog",
+        "position_d_gain",
+        "position_i_gain",
+        "position_p_gain",
         "goal_position",
         "present_position",
     ]
@@ -63,6 +68,12 @@ def model_mismatches(servos: Sequence[Servo], pings: Mapping[int, Reply]) -> lis
     ]
 
 
+def gains_diff(servo: Servo, have: Mapping[str, int]) -> list[Change]:
+    """The position gains the configuration gives ``servo`` where ``have`` (read from it)
+    differs: RAM, written under torque."""
+    return [(reg, v) for reg, v in servo.gains if have[reg.name] != v]
+
+
 def eeprom_diff(servo: Servo, have: Mapping[str, int], return_delay: int) -> list[Change]:
     """The settings ``servo`` must be given: Return Delay Time ``return_delay`` (2 µs
     units) and its Operating Mode, where ``have`` (read from it) differs."""
@@ -82,6 +93,8 @@ class StartPlan:
     """Servos whose Bus Watchdog stopped them (−1): reported, then cleared."""
     changes: dict[int, list[Change]]
     """EEPROM to write, per servo (torque off first: EEPROM needs it)."""
+    gains: dict[int, list[Change]]
+    """Position gains to write, per servo (RAM: under torque, before any goal moves)."""
     holding: frozenset[int]
     """Servos under torque whose EEPROM is right: they keep torque and goal."""
     start_ticks: dict[int, int]
@@ -136,6 +149,7 @@ def plan_start(
             sid for sid, regs in survey.items() if regs["bus_watchdog"] == WATCHDOG_ERROR
         ),
         changes=changes,
+        gains={s.id: d for s in servos if (d := gains_diff(s, survey[s.id]))},
         holding=holding,
         start_ticks=start,
         held_goals=held,
