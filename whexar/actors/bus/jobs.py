@@ -171,20 +171,27 @@ def clear_watchdog_job(ids: Sequence[int]) -> Callable[[DxlBus], None]:
     return job
 
 
+def _write_each(
+    bus: DxlBus, changes: Mapping[int, Sequence[Change]], names: Mapping[int, str]
+) -> list[str]:
+    """Write each servo's ``changes`` one by one; the problems (named by ``names``)."""
+    problems = []
+    for sid, diff in changes.items():
+        for reg, value in diff:
+            reply = bus.write(sid, reg, value)
+            if not reply.ok or reply.error & ~ALERT:
+                problems.append(f"{names[sid]}: writing {reg.name} = {value} failed")
+    return problems
+
+
 def configure_job(
     changes: Mapping[int, Sequence[Change]], names: Mapping[int, str]
 ) -> Callable[[DxlBus], list[str]]:
     """Torque off, then each EEPROM change; the problems (named by ``names``)."""
 
     def configure(bus: DxlBus) -> list[str]:
-        problems = []
         bus.sync_write(TORQUE_ENABLE.address, 1, dict.fromkeys(changes, b"\x00"))  # EEPROM needs it
-        for sid, diff in changes.items():
-            for reg, value in diff:
-                reply = bus.write(sid, reg, value)
-                if not reply.ok or reply.error & ~ALERT:
-                    problems.append(f"{names[sid]}: writing {reg.name} = {value} failed")
-        return problems
+        return _write_each(bus, changes, names)
 
     return configure
 
@@ -194,17 +201,7 @@ def gains_job(
 ) -> Callable[[DxlBus], list[str]]:
     """Each servo's position gains (RAM: its torque stays as it is); the problems (named
     by ``names``)."""
-
-    def write(bus: DxlBus) -> list[str]:
-        problems = []
-        for sid, diff in gains.items():
-            for reg, value in diff:
-                reply = bus.write(sid, reg, value)
-                if not reply.ok or reply.error & ~ALERT:
-                    problems.append(f"{names[sid]}: writing {reg.name} = {value} failed")
-        return problems
-
-    return write
+    return lambda bus: _write_each(bus, gains, names)
 
 
 def hold_job(moved: Mapping[int, int], wheels: Sequence[int]) -> Callable[[DxlBus], None]:

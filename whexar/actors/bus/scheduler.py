@@ -246,16 +246,13 @@ class BusScheduler(Actor):
         if plan.stopped:
             self.emit(WatchdogStopped(t=self.now(), source=self.name, servo_ids=plan.stopped))
             await owner.call(clear_watchdog_job(plan.stopped))
-        if plan.changes:
-            names = {sid: self.servos[sid].name for sid in plan.changes}
-            problems = await owner.call(configure_job(plan.changes, names))
-            if problems:
-                raise DeviceError("servo set-up failed: " + "; ".join(problems))
-        if plan.gains:
-            names = {sid: self.servos[sid].name for sid in plan.gains}
-            problems = await owner.call(gains_job(plan.gains, names))
-            if problems:
-                raise DeviceError("servo set-up failed: " + "; ".join(problems))
+        # EEPROM (torque off first), then the position gains (RAM, under torque).
+        for changes, job in ((plan.changes, configure_job), (plan.gains, gains_job)):
+            if changes:
+                names = {sid: self.servos[sid].name for sid in changes}
+                problems = await owner.call(job(changes, names))
+                if problems:
+                    raise DeviceError("servo set-up failed: " + "; ".join(problems))
         await self._detect_fast(owner, "start-up", report=True)
         policy = self.policy
         self._effects(policy.start(self.now(), plan.start_ticks))

@@ -4,11 +4,11 @@ Start-up reads before it writes. It pings every configured servo (waiting
 up to ``bus.boot_timeout_s`` for servos still booting) and checks its model
 (:func:`model_mismatches`), then reads each servo's Return Delay Time,
 Operating Mode, Shutdown, Torque Enable, Velocity Limit, Bus Watchdog,
-position gains and goal in one Sync Read (:data:`SURVEY`). From that survey :func:`plan_start`
-makes the :class:`StartPlan`: only a servo whose EEPROM settings differ from
-the configuration has its torque turned off, and only the values that differ
-are written (:func:`eeprom_diff`): a robot standing under torque keeps
-standing through a restart. A servo already under torque keeps its goal
+position gains and goal in one Sync Read (:data:`SURVEY`). From that survey
+:func:`plan_start` makes the :class:`StartPlan`: only a servo whose EEPROM
+settings differ from the configuration has its torque turned off, and only
+the values that differ are written (:func:`eeprom_diff`): a robot standing
+under torque keeps standing through a restart. A servo already under torque keeps its goal
 (brought within the limits); the others get their present position
 (likewise) and torque on. A Bus Watchdog error left by a host that stopped
 without stopping the servos is reported and cleared. Position gains the
