@@ -247,10 +247,10 @@ KPD_DIVISOR: Final = 16
 KPI_DIVISOR: Final = 65536
 """Position D Gain (80) / 16 = KPD, Position I Gain (82) / 65 536 = KPI (e-manual, MX (2.0),
 "Position PID Gain")."""
-POSITION_PERIOD_S: Final = 0.001
-"""The time base of the position loop's D and I terms: the firmware's 1 kHz control
-period. The e-manual gives the gains' scales, not their time base; this is an
-**estimate**, the period the velocity loop's integral is counted in here too."""
+CONTROL_PERIOD_S: Final = 0.001
+"""The firmware's control period (1 kHz), the time base of the velocity loop's integral
+and the position loop's I and D terms. The e-manual gives the gains' scales, not their
+time base: an **estimate**."""
 
 
 def position_duty_per_rad(p_gain: int) -> float:
@@ -269,14 +269,15 @@ def position_id_duty(i_gain: int, d_gain: int) -> tuple[float, float]:
     for Position I Gain (82) = ``i_gain`` and D Gain (80) = ``d_gain``.
 
     PWM = KPI · Σ error in ticks, one term a control period, + KPD · the error's change
-    in ticks over a period (:data:`POSITION_PERIOD_S`). Both are 0 at the initial gains.
+    in ticks over a period (:data:`CONTROL_PERIOD_S`). Both are 0 at the initial gains.
     """
     ki = i_gain / KPI_DIVISOR * TICKS_PER_RAD / PWM_LIMIT
-    kd = d_gain / KPD_DIVISOR * TICKS_PER_RAD * POSITION_PERIOD_S / PWM_LIMIT
+    kd = d_gain / KPD_DIVISOR * TICKS_PER_RAD * CONTROL_PERIOD_S / PWM_LIMIT
     return ki, kd
 
 
 __all__ = [
+    "CONTROL_PERIOD_S",
     "DATASHEETS",
     "DATASHEET_MOTORS",
     "DEFAULT_MOTORS",
@@ -286,7 +287,6 @@ __all__ = [
     "M1_MOTORS",
     "MAX_DUTY",
     "MOTORS",
-    "POSITION_PERIOD_S",
     "PWM_LIMIT",
     "Datasheet",
     "GearFriction",

@@ -82,9 +82,9 @@ from whexar.sensors.board_emulator import (
 from whexar.sensors.frame import ACC_KEYS, FSR_KEYS, IR_KEYS
 from whexar.sensors.imu_emulator import FakeLsm9ds1
 from whexar.sim.motors import (
+    CONTROL_PERIOD_S,
     DEFAULT_MOTORS,
     MAX_DUTY,
-    POSITION_PERIOD_S,
     PWM_LIMIT,
     TICKS_PER_RAD,
     GearFriction,
@@ -118,8 +118,6 @@ VELOCITY_UNIT_RAD_S: Final = ct.velocity_to_rad_s(1)
 KVP_DIVISOR: Final = 128
 KVI_DIVISOR: Final = 65536
 """Velocity P Gain (78) / 128 and Velocity I Gain (76) / 65536 (e-manual, MX (2.0))."""
-CONTROL_PERIOD_S: Final = 0.001
-"""The firmware's control period over which the velocity error is integrated (1 kHz)."""
 _FRICTION_DOF: Final = int(mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
 
 
@@ -678,7 +676,7 @@ class SimWorld:
         lag = self._desired - q
         duty_position = self._kp * lag
         if self._pid:  # Position I and D Gain (e-manual's PID; 0 unless configured)
-            summed = self._sum + lag * (h / POSITION_PERIOD_S)
+            summed = self._sum + lag * (h / CONTROL_PERIOD_S)
             duty_position = duty_position + self._kpi * summed + self._kpd * (v - w)
             # No wind-up while saturated, as the velocity loop above.
             free = self._position & (np.abs(duty_position) < MAX_DUTY)

@@ -26,7 +26,7 @@ import re
 import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, Final, TypeGuard
 
 from whexar.campaign.experiments.figures import Figure
 
@@ -76,11 +76,16 @@ class Compared:
         }
 
 
+def _number(value: object) -> TypeGuard[int | float]:
+    """A figure the simulation gave as a number (not text, not none)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def compare(f: Figure) -> Compared | None:
     """The row against the thesis; ``None`` when there is nothing to compare (no thesis
     figure or a 0, no number from the simulation, text that is no range)."""
     sim, thesis = f.sim, f.thesis
-    if not isinstance(sim, int | float) or isinstance(sim, bool) or thesis is None:
+    if not _number(sim) or thesis is None:
         return None
     if isinstance(thesis, str):
         span = bounds(thesis)
@@ -120,6 +125,11 @@ class Agreement:
         return tuple(c for c in (*self.numbers, *self.ranges) if c.far)
 
     @property
+    def inside(self) -> int:
+        """How many ranges and bounds the simulation's figure lies inside."""
+        return len(self.ranges) - len(self.outside)
+
+    @property
     def outside(self) -> tuple[Compared, ...]:
         """The ranges and bounds the simulation's figure lies outside."""
         return tuple(c for c in self.ranges if c.deviation > 0)
@@ -130,7 +140,7 @@ class Agreement:
             "numbers": len(self.numbers),
             "median_deviation": self.median_deviation,
             "ranges": len(self.ranges),
-            "ranges_inside": len(self.ranges) - len(self.outside),
+            "ranges_inside": self.inside,
             "far_off": [c.to_json() for c in self.far_off],
             "outside": [c.to_json() for c in self.outside],
             "without_value": [f.name for f in self.without_value],
@@ -148,7 +158,7 @@ def agreement(found: Sequence[Figure]) -> Agreement:
         c = compare(f)
         if c is not None:
             (ranges if isinstance(f.thesis, str) else numbers).append(c)
-        elif not isinstance(f.sim, int | float) or isinstance(f.sim, bool):
+        elif not _number(f.sim):
             without.append(f)
     return Agreement(tuple(numbers), tuple(ranges), tuple(without))
 

@@ -98,7 +98,7 @@ def agreement_lines(a: Agreement, bullet: str = "") -> list[str]:
         + (" none." if median is None else f" median deviation {median * 100:.1f} %."),
         f"{bullet}{len(a.far_off)} more than {FAR_RATIO:g}× off" + (":" if a.far_off else "."),
         *(sub + _compared(c, ratio=True) for c in a.far_off),
-        f"{bullet}{len(a.ranges)} ranges and bounds, {len(a.ranges) - len(a.outside)} inside"
+        f"{bullet}{len(a.ranges)} ranges and bounds, {a.inside} inside"
         + ("; outside:" if a.outside else "."),
         *(sub + _compared(c) for c in a.outside),
     ]
