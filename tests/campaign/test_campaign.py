@@ -109,6 +109,28 @@ def test_config_and_fault_plan_variations_are_documents_of_their_own() -> None:
     assert "faults" not in a.scenario
 
 
+def test_a_configuration_given_replaces_the_base_scenarios_for_every_run(
+    tmp_path: Path,
+) -> None:
+    stiff = _write(tmp_path, "[joints.coxa]\ngains = { p = 1700 }\n", "stiff.toml")
+    campaign = load_campaign(_write(tmp_path, SMALL), config=stiff)
+    plain = load_campaign(_write(tmp_path, SMALL))
+    assert campaign.config == str(stiff)
+    assert plain.config is None
+    for run, before in zip(campaign.runs, plain.runs, strict=True):
+        assert run.config is not None
+        assert before.config is not None
+        assert run.config["joints"] == {"coxa": {"gains": {"p": 1700}}}
+        assert run.config["locomotion"] == before.config["locomotion"]  # set on it
+        assert run.key != before.key  # --resume runs them again
+    bad = _write(tmp_path, "[locomotion]\nstand_up_s = -1\n", "bad.toml")
+    with pytest.raises(ConfigError) as caught:
+        load_campaign(_write(tmp_path, SMALL), config=bad)
+    (problem,) = caught.value.problems  # once, not once per run
+    assert problem.path == "config"
+    assert "locomotion.stand_up_s" in problem.allowed
+
+
 def test_unknown_keys_are_named_before_anything_runs() -> None:
     found = _problems({"scenario": "wheels", "grid": {"seed": [0]}, "workers": 3})
     assert any(p.startswith("workers = 3: unknown key") for p in found)
@@ -287,6 +309,21 @@ def test_the_command_names_the_problems_of_a_bad_file(
     err = capsys.readouterr().err
     assert f"{path}: 1 problem" in err
     assert "grid.seed = []: a non-empty list of values" in err
+
+
+@pytest.mark.slow
+def test_the_command_runs_a_configuration_given_and_its_results_name_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    stiff = _write(tmp_path, "[joints.coxa]\ngains = { p = 1700 }\n", "stiff.toml")
+    one = _write(tmp_path, 'scenario = "wheels"\n[grid]\nduration_s = [1.0]\n')
+    out = tmp_path / "out"
+    assert (
+        main(["campaign", str(one), "--config", str(stiff), "-o", str(out), "--workers", "1"]) == 0
+    )
+    capsys.readouterr()
+    assert json.loads((out / "results.json").read_text())["config"] == str(stiff)
+    assert f"Robot configuration: `{stiff}` (`--config`)" in (out / "summary.md").read_text()
 
 
 def test_ray_missing_is_one_line_saying_how_to_install_it(

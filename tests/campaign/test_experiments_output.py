@@ -11,7 +11,8 @@ table, ``--json``) and the report it writes. They were written before the
 thesis's figures moved from code into their data file; since, the report's
 sentence naming where the code and the data live has changed, and the table's
 summary (``agreement``: the median deviation, the rows more than 2× off, the
-ranges missed) was added to all three outputs.
+ranges missed) was added to all three outputs, and ``--json``'s ``config`` (the robot
+configuration given with ``--config``; ``null`` here).
 
 When an output is meant to change, rewrite them and review the diff:
 ``python tests/campaign/test_experiments_output.py``.
@@ -54,6 +55,15 @@ def _outputs(name: str) -> dict[str, str]:
 def test_the_table_json_and_report_are_unchanged_for_the_same_rows(name: str) -> None:
     for file, text in _outputs(name).items():
         assert text == (GOLDEN / name / file).read_text(), f"golden/{name}/{file} differs"
+
+
+def test_a_configuration_given_is_named_in_the_json_and_the_report() -> None:
+    rows = _rows("good")
+    found = figures(rows)
+    assert json_document(found, "stiff.toml")["config"] == "stiff.toml"
+    report = report_markdown(found, rows, config="stiff.toml")
+    assert "Robot configuration: `stiff.toml` (`--config`)" in report
+    assert "Robot configuration" not in report_markdown(found, rows)
 
 
 def test_the_rows_take_every_kind_of_note() -> None:

@@ -287,7 +287,7 @@ def test_campaign_and_its_results_files(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     monkeypatch.setattr(runner, "_local", in_process)
-    monkeypatch.setattr(whexar.campaign, "load_campaign", lambda _name: tiny_campaign())
+    monkeypatch.setattr(whexar.campaign, "load_campaign", lambda _name, **_: tiny_campaign())
     out = tmp_path / "out"
     code, outcome = run_json(["campaign", "tiny", "-o", str(out), "--json"], capsys)
     assert (code, outcome["runs"], outcome["failed"]) == (0, 1, 0)
@@ -302,7 +302,7 @@ def test_sim_experiments(
     # The experiments' 165 runs take minutes: one tiny run instead. The table's figures
     # then have no runs to read, and the simulation's side is null or "not simulated".
     monkeypatch.setattr(runner, "_local", in_process)
-    monkeypatch.setattr(whexar.campaign, "load_campaign", lambda _name: tiny_campaign())
+    monkeypatch.setattr(whexar.campaign, "load_campaign", lambda _name, **_: tiny_campaign())
     args = ["sim", "--experiments", "--report", str(tmp_path / "report"), "--json"]
     code, table = run_json(args, capsys)
     assert code == 0

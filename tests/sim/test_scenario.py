@@ -208,6 +208,26 @@ def test_faults_and_config_paths_are_checked_relative_to_the_file(tmp_path: Path
     assert s.config_path.name == "whexar.toml"
 
 
+def test_a_configuration_given_replaces_the_scenarios_own(tmp_path: Path) -> None:
+    stiff = tmp_path / "stiff.toml"
+    stiff.write_text("[joints.coxa]\ngains = { p = 1700 }\n", encoding="utf-8")
+    s = load_scenario("tripod", config=stiff)
+    assert s.config_path == stiff.resolve()
+    gains = s.config.joints.by_name("coxa").gains
+    assert gains is not None
+    assert gains.p == 1700
+    assert load_scenario("tripod").config.joints.by_name("coxa").gains is None
+    # A bad one is a problem of the scenario's `config`, naming the file and its key.
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[locomotion]\nstand_up_s = -1\n", encoding="utf-8")
+    with pytest.raises(ConfigError) as info:
+        load_scenario("tripod", config=bad)
+    (problem,) = info.value.problems
+    assert problem.path == "config"
+    assert problem.value == str(bad.resolve())
+    assert "locomotion.stand_up_s" in problem.allowed
+
+
 def test_a_missing_file_or_unknown_name_is_a_clear_error(tmp_path: Path) -> None:
     with pytest.raises(ConfigError) as info:
         load_scenario(tmp_path / "nowhere.toml")

@@ -63,6 +63,7 @@ from typing import TYPE_CHECKING, Final, cast
 from whexar.actors.messages import BusLost, ServoDegraded, ServoFault
 from whexar.bus.emulator.faults import FaultInjector
 from whexar.campaign.metrics import MetricFn, Value, Window, metric, progress_speed
+from whexar.campaign.spec import config_note
 from whexar.record.plots import new_figure, save_figure
 from whexar.robot import JOINT_NAMES, LEG_NAMES
 from whexar.runtime.messages import ActorStopped, SafeStop, StopRequested
@@ -474,7 +475,7 @@ def _failure_times(lines: Sequence[_Line]) -> str:
     return f"{times[0]:g} s" if len(times) == 1 else f"{times[0]:g}–{times[-1]:g} s"
 
 
-def _markdown(lines: Sequence[_Line], image: str) -> str:
+def _markdown(lines: Sequence[_Line], image: str, config: str | None = None) -> str:
     counts = Counter(line.outcome for line in lines)
     summary = ", ".join(f"{name}: {counts[name]}" for name in OUTCOMES if counts[name])
     if counts[None]:
@@ -492,6 +493,7 @@ def _markdown(lines: Sequence[_Line], image: str) -> str:
         "`whexar.campaign.failures.write_report` from the runs. There is no target on the",
         "outcomes yet: the table shows where the robot is weak.",
         "",
+        *config_note(config),
         f"**{len(lines)} servos** — {summary}.",
         "",
         f"![outcome of each servo's failure, legs × joints]({image})",
@@ -605,8 +607,9 @@ def _grid(lines: Sequence[_Line], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def write_report(rows: Sequence[Row], out_dir: Path) -> list[Path]:
-    """Write ``servo-failures.md`` and ``img/servo-failures.png`` into ``out_dir``.
+def write_report(rows: Sequence[Row], out_dir: Path, *, config: str | None = None) -> list[Path]:
+    """Write ``servo-failures.md`` and ``img/servo-failures.png`` into ``out_dir``,
+    naming the robot configuration ``config`` if one was given.
 
     One line per row (per servo): its ID, leg, joint, outcome, net progress made after
     the failure, heading change, detection time and the runtime's events. The folder's
@@ -618,7 +621,7 @@ def write_report(rows: Sequence[Row], out_dir: Path) -> list[Path]:
     lines = [_line(row) for row in rows]
     image = _grid(lines, out_dir / "img" / f"{REPORT_NAME}.png")
     md = out_dir / f"{REPORT_NAME}.md"
-    md.write_text(_markdown(lines, f"img/{REPORT_NAME}.png"), encoding="utf-8")
+    md.write_text(_markdown(lines, f"img/{REPORT_NAME}.png", config), encoding="utf-8")
     return [md, image]
 
 

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Final
 from whexar.actors.messages import NoFoothold, Restepped
 from whexar.campaign.metrics import Value, Window, metric
 from whexar.campaign.rows import Row
+from whexar.campaign.spec import config_note
 from whexar.record.plots import new_figure, save_figure
 
 if TYPE_CHECKING:
@@ -227,7 +228,7 @@ def _per_10(count: float, minutes: float) -> str:
     return f"{10.0 * count / minutes:.2f}" if minutes > 0 else "—"
 
 
-def _markdown(rows: Sequence[Row], image: str) -> str:
+def _markdown(rows: Sequence[Row], image: str, config: str | None = None) -> str:
     ok = success(rows)
     fired = false_triggers(rows)
     terrains = _terrains(fired)
@@ -239,6 +240,7 @@ def _markdown(rows: Sequence[Row], image: str) -> str:
         f"≥ {TARGET_SUCCESS:.0%}, false triggers ≤ {TARGET_FALSE_PER_10_MIN:g} per 10 minutes "
         "of nominal walking.",
         "",
+        *config_note(config),
         "| reflex | scenario | success | runs | "
         + " | ".join(f"false triggers /10 min, {t}" for t in terrains)
         + " |",
@@ -301,14 +303,15 @@ def _plot(rows: Sequence[Row], path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def write_report(rows: Sequence[Row], out_dir: Path) -> list[Path]:
+def write_report(rows: Sequence[Row], out_dir: Path, *, config: str | None = None) -> list[Path]:
     """Write ``reflex-campaign.md`` and ``img/reflex-campaign.png`` into ``out_dir``
-    (``docs/``'s layout); returns the files written."""
+    (``docs/``'s layout), naming the robot configuration ``config`` if one was given;
+    returns the files written."""
     out_dir = Path(out_dir)
     (out_dir / "img").mkdir(parents=True, exist_ok=True)
     image = _plot(rows, out_dir / "img" / f"{REPORT_NAME}.png")
     md = out_dir / f"{REPORT_NAME}.md"
-    md.write_text(_markdown(rows, f"img/{REPORT_NAME}.png"), encoding="utf-8")
+    md.write_text(_markdown(rows, f"img/{REPORT_NAME}.png", config), encoding="utf-8")
     return [md, image]
 
 

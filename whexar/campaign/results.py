@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 from whexar._json import dumps as strict_dumps
 from whexar.campaign.metrics import registry
-from whexar.campaign.spec import REPORTS
+from whexar.campaign.spec import REPORTS, config_note
 
 if TYPE_CHECKING:
     from whexar.campaign.rows import CampaignResult, Row
@@ -41,7 +41,7 @@ def write_results(result: CampaignResult) -> list[Path]:
         written.append(plot)
     if camp.report is not None:
         module = importlib.import_module(REPORTS[camp.report])
-        written.extend(module.write_report(result.rows, out))
+        written.extend(module.write_report(result.rows, out, config=camp.config))
     return written
 
 
@@ -53,6 +53,7 @@ def _json(result: CampaignResult) -> Path:
         "source": camp.source,
         "metrics": list(camp.metrics),
         "variation_keys": list(camp.variation_keys),
+        "config": camp.config,
         "wall_s": result.wall_s,
         "rows": [r.to_json() for r in result.rows],
     }
@@ -130,6 +131,7 @@ def _markdown(result: CampaignResult) -> Path:
         f"{len(result.rows)} runs, {len(failed)} failed, {result.wall_s:.0f} s of wall time "
         f"(`{camp.source}`).",
         "",
+        *config_note(camp.config),
     ]
     cols = [*camp.variation_keys, *camp.metrics]
     units = {m: table[m].unit for m in camp.metrics if m in table}

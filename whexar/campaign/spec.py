@@ -34,7 +34,9 @@ path (:func:`parse_path`):
   from the campaign file, or an inline fault plan table), ``faults.faults[0].ids``,
   ``sensor_faults``;
 * ``config.<section>.<key>…`` into the robot configuration: the base
-  scenario's configuration file, or the defaults, with the values set;
+  scenario's configuration file (or the one :func:`load_campaign` is given in
+  its place, the command line's ``--config``), or the defaults, with the values
+  set;
 * ``measure.from_s`` and ``measure.to_s``, the metrics' window;
 * ``timeout_s``, this run's own limit of wall time;
 * ``label``, the row's label.
@@ -65,7 +67,7 @@ import tomli_w
 from pydantic import Field, ValidationError
 
 from whexar.campaign.metrics import Window, registry
-from whexar.config import parse_config
+from whexar.config import load_config, parse_config
 from whexar.errors import ConfigError, Problem
 from whexar.runtime.schema import (
     NonNegative,
@@ -102,7 +104,7 @@ REPORTS: Final = {
     "reflexes": "whexar.campaign.reflexes",
 }
 """The built-in reports a campaign can ask for (``report = …``), and the module whose
-``write_report(rows, out_dir)`` writes each."""
+``write_report(rows, out_dir, config=…)`` writes each (``config``: :attr:`Campaign.config`)."""
 _SCENARIO_KEYS: Final = tuple(ScenarioFile.model_fields)
 _ALLOWED_KEYS: Final = (
     f"a scenario key ({', '.join(_SCENARIO_KEYS)}, with .key and [index] inside them), "
@@ -189,6 +191,20 @@ class Campaign:
     report: str | None = None
     variation_keys: tuple[str, ...] = ()
     """Every key some run varies, in the order the file names them: the table's columns."""
+    config: str | None = None
+    """The robot configuration file given in place of the base scenario's (``--config``),
+    or ``None``: the reports say which robot they describe."""
+
+
+def config_note(config: str | None) -> list[str]:
+    """A report's paragraph naming the robot configuration given with ``--config``
+    (:attr:`Campaign.config`), or nothing for the base scenario's own."""
+    if config is None:
+        return []
+    return [
+        f"Robot configuration: `{config}` (`--config`), in place of the base scenario's.",
+        "",
+    ]
 
 
 # --------------------------------------------------------------------------- paths
@@ -265,14 +281,18 @@ def campaign_path(name_or_path: str | Path) -> Path:
     return builtin_path(name_or_path, CAMPAIGN_DIR, "campaign", "shipped")
 
 
-def load_campaign(name_or_path: str | Path) -> Campaign:
-    """Read and check a campaign and every run it describes (see the module docstring).
+def load_campaign(name_or_path: str | Path, *, config: str | Path | None = None) -> Campaign:
+    """Read and check a campaign and every run it describes (see the module docstring);
+    ``config``, a robot configuration file, replaces the base scenario's (the runs'
+    ``config.*`` keys are set on it).
 
     Raises :class:`~whexar.errors.ConfigError` naming the file and listing every
     problem, before anything runs.
     """
     path = campaign_path(name_or_path)
-    return parse_campaign(read_toml(path), str(path), base=path.parent, stem=path.stem)
+    return parse_campaign(
+        read_toml(path), str(path), base=path.parent, stem=path.stem, config=config
+    )
 
 
 def parse_campaign(
@@ -281,8 +301,10 @@ def parse_campaign(
     *,
     base: Path | None = None,
     stem: str = "campaign",
+    config: str | Path | None = None,
 ) -> Campaign:
-    """Check a campaign document (as parsed from TOML); relative paths start at ``base``."""
+    """Check a campaign document (as parsed from TOML); relative paths start at ``base``;
+    ``config`` as :func:`load_campaign` takes it."""
     folder = (base if base is not None else Path.cwd()).resolve()
     try:
         spec = CampaignFile.model_validate(data)
@@ -298,6 +320,8 @@ def parse_campaign(
     if spec.report is not None and spec.report not in REPORTS:
         problems.append(Problem("report", spec.report, f"a built-in report: {', '.join(REPORTS)}"))
     base_doc, base_folder = _base_scenario(spec.scenario, folder, problems)
+    if config is not None and base_doc is not None:
+        base_doc["config"] = str(_robot_config(Path(config), problems))
     variations = _variations(spec, problems)
     if problems or base_doc is None:
         raise ConfigError(source, problems)
@@ -326,6 +350,7 @@ def parse_campaign(
         metrics=spec.metrics,
         report=spec.report,
         variation_keys=tuple(keys),
+        config=str(config) if config is not None else None,
     )
 
 
@@ -340,6 +365,17 @@ def _base_scenario(
         found = "; ".join(str(p) for p in exc.problems)
         problems.append(Problem("scenario", name, f"a readable scenario; {found}"))
         return None, folder
+
+
+def _robot_config(path: Path, problems: list[Problem]) -> Path:
+    """``path`` resolved, once checked whole: its problems are named once, not per run."""
+    try:
+        load_config(path)
+    except ConfigError as exc:
+        found = "; ".join(str(p) for p in exc.problems)
+        allowed = f"a robot configuration without problems; {found}"
+        problems.append(Problem("config", str(path), allowed))
+    return path.resolve()
 
 
 def _base_config(doc: Mapping[str, Any], folder: Path, problems: list[Problem]) -> dict[str, Any]:
@@ -584,6 +620,7 @@ __all__ = [
     "RunSpec",
     "campaign_names",
     "campaign_path",
+    "config_note",
     "load_campaign",
     "parse_campaign",
     "parse_path",

@@ -10,7 +10,9 @@ A progress line on stderr shows the runs done, failed and running, and the
 time left at the pace so far. The results go into ``-o DIR`` (default
 ``campaigns/NAME``): ``results.csv``, ``results.json``, ``summary.md``,
 ``metrics.png``, ``runs.jsonl`` as the runs finish, and the recordings when the
-campaign keeps them. ``--resume`` keeps the runs already finished there. The
+campaign keeps them. ``--resume`` keeps the runs already finished there.
+``--config FILE`` runs them all with that robot configuration in place of the base
+scenario's (the runs' ``config.*`` keys set on it; the summary names it). The
 exit status is 0 when every run finished, 2 when some failed (their rows say why).
 """
 
@@ -98,7 +100,7 @@ def _campaign(args: argparse.Namespace) -> int:
     from whexar.campaign import load_campaign, run_campaign
 
     try:
-        campaign = load_campaign(args.file)
+        campaign = load_campaign(args.file, config=args.config)
     except ConfigError as exc:
         print_problems(exc)
         return 1
@@ -172,6 +174,12 @@ def add_commands(commands: Commands) -> None:
         type=Path,
         metavar="DIR",
         help="where the results go (default: campaigns/NAME)",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="a robot configuration for every run, in place of the base scenario's",
     )
     p.add_argument("--resume", action="store_true", help="keep the runs already finished in DIR")
     p.add_argument("--json", action="store_true", help="print the outcome as one JSON object")

@@ -30,12 +30,15 @@ default a new file under ``recordings/`` named after the scenario and the date;
 ``--live [PORT]`` serves what is recorded to the Foxglove app
 (:mod:`whexar.record.live`) and paces the run to real time.
 
+``--config FILE`` runs a robot configuration of your own (the one the robot runs,
+say) in place of the scenario's, or of the experiments' base scenario's.
+
 ``--experiments`` runs the thesis's experiments instead (the campaign
 ``config/campaigns/experiments.toml`` on one worker process per CPU, a
 progress line on stderr): the report goes into ``--report DIR`` (default
 :data:`EXPERIMENTS_REPORT`), the table of the simulation's figures beside the
 thesis's is printed, or with ``--json`` one object
-``{"experiments": [{"name", "unit", "thesis", "sim"}, …], "agreement": {…}}``
+``{"experiments": [{"name", "unit", "thesis", "sim"}, …], "agreement": {…}, "config": …}``
 (:mod:`whexar.campaign.experiments`).
 """
 
@@ -238,7 +241,7 @@ def _experiments(args: argparse.Namespace) -> int:
     if given:
         raise UsageError(f"--experiments runs its own campaign: drop {', '.join(given)}")
     try:
-        campaign = load_campaign(EXPERIMENTS)
+        campaign = load_campaign(EXPERIMENTS, config=args.config)
     except ConfigError as exc:
         print_problems(exc)
         return 1
@@ -252,7 +255,7 @@ def _experiments(args: argparse.Namespace) -> int:
         print(line, file=sys.stderr)
     found = figures(result.rows)
     if args.json:
-        print_json(json_document(found))
+        print_json(json_document(found, campaign.config))
     else:
         print(table_text(found))
     return FAILED_STATUS if result.failed else 0
@@ -271,7 +274,7 @@ def _sim(args: argparse.Namespace) -> int:
             "render the run with --video FILE.mp4 instead"
         )
     try:
-        scenario = load_scenario(args.scenario)
+        scenario = load_scenario(args.scenario, config=args.config)
     except ConfigError as exc:
         print_problems(exc)
         return 1
@@ -350,6 +353,13 @@ def add_commands(commands: Commands) -> None:
         metavar="NAME|FILE",
         help="a built-in scenario (course, obstacles, slope, wheels) or a TOML file; "
         "default: course",
+    )
+    sim.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="a robot configuration in place of the scenario's (with --experiments: of "
+        "every run's); default: the scenario's, else the thesis robot",
     )
     sim.add_argument(
         "--duration", type=seconds, metavar="S", help="simulated seconds (default: the scenario's)"

@@ -49,7 +49,9 @@ clamps them and says so with an event, as on the robot.
 experiments did (6.7.6): gravity turns about y from ``start_s`` at ``rate_deg_s``
 up to ``max_deg`` (:mod:`whexar.sim.tilt`).
 
-*Paths* (``faults``, ``config``) are relative to the scenario file's folder.
+*Paths* (``faults``, ``config``) are relative to the scenario file's folder;
+:func:`load_scenario` can take another configuration in place of ``config``
+(``whexar sim --config``).
 
 *Supply and motors.* ``[supply]`` picks what feeds the servos
 (:mod:`whexar.sim.power`): ``kind = "bench"`` (the default: the experiments'
@@ -455,14 +457,21 @@ def scenario_path(name_or_path: str | Path) -> Path:
     return builtin_path(name_or_path, SCENARIO_DIR, "scenario")
 
 
-def load_scenario(name_or_path: str | Path = DEFAULT_SCENARIO) -> Scenario:
-    """Read and check a scenario: a built-in name (``"course"``) or a TOML file.
+def load_scenario(
+    name_or_path: str | Path = DEFAULT_SCENARIO, *, config: str | Path | None = None
+) -> Scenario:
+    """Read and check a scenario: a built-in name (``"course"``) or a TOML file;
+    ``config``, a robot configuration file, replaces the scenario's own (``config``).
 
     Raises :class:`~whexar.errors.ConfigError` naming the file and listing
-    every problem (key path, value, what is allowed), before anything runs.
+    every problem (key path, value, what is allowed), before anything runs; the
+    commands are checked against the configuration the run will read.
     """
     path = scenario_path(name_or_path)
-    return parse_scenario(read_toml(path), str(path), base=path.parent, stem=path.stem)
+    data = read_toml(path)
+    if config is not None:
+        data = {**data, "config": str(Path(config).resolve())}
+    return parse_scenario(data, str(path), base=path.parent, stem=path.stem)
 
 
 def parse_scenario(

@@ -23,6 +23,7 @@ from whexar.campaign.experiments.figures import (
 )
 from whexar.campaign.experiments.plots import PLOTS
 from whexar.campaign.experiments.reference import Reference, reference
+from whexar.campaign.spec import config_note
 
 if TYPE_CHECKING:
     from whexar.campaign.rows import Row
@@ -108,12 +109,14 @@ def agreement_lines(a: Agreement, bullet: str = "") -> list[str]:
     return lines
 
 
-def json_document(found: Sequence[Figure]) -> dict[str, Any]:
+def json_document(found: Sequence[Figure], config: str | None = None) -> dict[str, Any]:
     """What ``whexar sim --experiments --json`` prints: ``{"experiments": [row, …],
-    "agreement": {…}}`` (:meth:`Figure.to_json`, :meth:`Agreement.to_json`)."""
+    "agreement": {…}, "config": …}`` (:meth:`Figure.to_json`, :meth:`Agreement.to_json`;
+    ``config``: the robot configuration given with ``--config``, else ``null``)."""
     return {
         "experiments": [f.to_json() for f in found],
         "agreement": agreement(found).to_json(),
+        "config": config,
     }
 
 
@@ -135,9 +138,13 @@ def table_text(found: Sequence[Figure]) -> str:
 
 
 def report_markdown(
-    found: Sequence[Figure], rows: Sequence[Row], ref: Reference | None = None
+    found: Sequence[Figure],
+    rows: Sequence[Row],
+    ref: Reference | None = None,
+    config: str | None = None,
 ) -> str:
-    """``experiments.md``: what was run, the table, the plots."""
+    """``experiments.md``: what was run (on the robot configuration ``config`` when one
+    was given), the table, the plots."""
     ref = reference() if ref is None else ref
     rules = ref.rules
     failed = [r for r in rows if r.outcome != "ok"]
@@ -150,6 +157,7 @@ def report_markdown(
         " `whexar/campaign/experiments/`). The thesis is Žák 2023, sections 6.4–6.8; every"
         " thesis figure is cited by section, table or equation.",
         "",
+        *config_note(config),
         f"{len(rows)} runs, {len(failed)} failed. The robot starts seated on the flat or on an"
         " endless plane rising ahead of it, stands up in its first ~2.4 s and then stands,"
         " walks the tripod gait at 0.12 m/s or rides at 0.2 m/s (6.8); the metrics measure a"
@@ -215,9 +223,11 @@ def _seeds_paragraph(found: Sequence[Figure], rows: Sequence[Row]) -> list[str]:
     ]
 
 
-def write_report(rows: Sequence[Row], out_dir: str | Path) -> list[Path]:
-    """Write ``experiments.md`` and its plots (under ``img/experiments/``) into ``out_dir``;
-    the paths written."""
+def write_report(
+    rows: Sequence[Row], out_dir: str | Path, *, config: str | None = None
+) -> list[Path]:
+    """Write ``experiments.md`` and its plots (under ``img/experiments/``) into ``out_dir``,
+    naming the robot configuration ``config`` if one was given; the paths written."""
     out = Path(out_dir)
     images = out / IMG_DIR
     images.mkdir(parents=True, exist_ok=True)
@@ -225,7 +235,7 @@ def write_report(rows: Sequence[Row], out_dir: str | Path) -> list[Path]:
     found = figures(rows, ref)
     written = [draw(rows, ref, images / name) for name, draw, _ in PLOTS]
     md = out / "experiments.md"
-    md.write_text(report_markdown(found, rows, ref))
+    md.write_text(report_markdown(found, rows, ref, config))
     return [md, *written]
 
 
