@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import functools
 import math
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
+from whexar.actors.messages import WorldDiverged
 from whexar.bus.control_table import CENTER_TICKS
 from whexar.bus.emulator.chain import ServoChain
 from whexar.config import RobotConfig
@@ -22,7 +24,7 @@ from whexar.sim.motors import (
     MotorSource,
     position_duty_per_rad,
 )
-from whexar.sim.run import SimResult, seated_angles, simulate
+from whexar.sim.run import Sample, SimResult, seated_angles, simulate
 from whexar.sim.terrain import slope
 from whexar.sim.world import SimWorld, fsr_counts
 from whexar.testing.walk import command
@@ -147,6 +149,46 @@ def test_a_position_i_gain_takes_the_error_of_a_held_load_away() -> None:
     world, chain, _ = _held_world("bam-m1")
     chain.servos[1].set_register("position_i_gain", 2000)
     assert abs(_held_error(world, chain, 1, 1.0)) < 0.1 * p_alone
+
+
+def test_a_world_that_diverges_holds_still_and_says_when(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """MuJoCo would reset the robot to its first pose and print (and log to a file) a
+    warning; the world goes back to the transaction's start and holds still instead."""
+    monkeypatch.chdir(tmp_path)  # where MuJoCo's default handler would leave its log
+    world, _, _ = _held_world()
+    world.advance_to(0.05)
+    before = world.data.qpos.copy()
+    world.data.qvel[6] = 1e30  # RF's coxa: no physics integrates that
+    world.advance_to(0.06)
+    assert world.diverged_at is not None
+    assert 0.05 < world.diverged_at <= 0.06  # at its first step
+    assert "Nan, Inf or huge value in QVEL" in world.divergence
+    np.testing.assert_array_equal(world.data.qpos, before)
+    world.advance_to(0.5)  # the clock goes on, nothing moves
+    assert world.time == pytest.approx(0.5, abs=world.h)
+    np.testing.assert_array_equal(world.data.qpos, before)
+    assert all(math.isfinite(a) for a in world.accel_g)
+    assert "WARNING" not in capfd.readouterr().err
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+@pytest.mark.slow
+def test_a_run_whose_world_diverges_says_so_and_stops() -> None:
+    def poison(sample: Sample, world: SimWorld) -> None:
+        if sample.t >= 1.0 and world.diverged_at is None:
+            world.data.qvel[0] = 1e30
+
+    r = simulate(duration=4.0, on_sample=poison)
+    (said,) = [e for e in r.events if isinstance(e, WorldDiverged)]
+    assert r.world.diverged_at is not None
+    assert 1.0 < r.world.diverged_at < said.t < 1.2
+    assert "QVEL" in said.detail
+    stopped = r.summary()["stopped_by"]
+    assert stopped is not None
+    assert stopped.startswith("the simulated physics diverged")
+    assert r.run.end_time < 3.0  # the stop sequence, not the 4 s
 
 
 def test_present_current_is_the_motor_torque_over_kt() -> None:

@@ -443,6 +443,14 @@ class WorldFault(Event):
     active: bool
 
 
+@message
+class WorldDiverged(Event):
+    """The simulated world's physics diverged at ``t`` (MuJoCo could not integrate it:
+    ``detail``, its warning); the world holds still from then on and the run stops."""
+
+    detail: str
+
+
 # --------------------------------------------------------------------------- command sources
 # The gamepad's link (whexar.actors.commands): ``link`` is its device, a path
 # (/dev/input/event0) or an in-process pad (pipe:NAME).

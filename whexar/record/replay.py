@@ -52,7 +52,7 @@ from typing import TYPE_CHECKING, Any, Final, Literal, TypeVar
 import anyio
 
 from whexar.actors.graph import with_reflexes
-from whexar.actors.messages import WorldFault
+from whexar.actors.messages import WorldDiverged, WorldFault
 from whexar.bus.emulator.chain import SERVO_CHAIN
 from whexar.bus.field import FieldBus
 from whexar.bus.replay import REPLAYED_BUS, BusReplay
@@ -556,9 +556,11 @@ def _expected(
     topics = [f"/{ch}" for ch in (*channels, EVENTS_CHANNEL)]
     for r in rec.records(topics, file_order=not by_time):
         msg = r.value
-        if not isinstance(msg, Message) or isinstance(msg, (*RECORDER_EVENTS, WorldFault)):
-            # The recorder's own events are the disk's, not the actors'; a world fault is
-            # the simulated world's (its effects are in the recorded bytes).
+        if not isinstance(msg, Message) or isinstance(
+            msg, (*RECORDER_EVENTS, WorldFault, WorldDiverged)
+        ):
+            # The recorder's own events are the disk's, not the actors'; a world fault or
+            # divergence is the simulated world's (its effects are in the recorded bytes).
             continue
         if left_out and (
             getattr(msg, "source", None) in left_out or getattr(msg, "actor", None) in left_out

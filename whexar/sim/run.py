@@ -14,6 +14,10 @@ commands at their times and samples the world every
 The robot starts seated on the ground with the torque off, as it is when
 switched on: the bus scheduler finds the servos where the world put them,
 and the coordinator stands the robot up from there.
+
+A world whose physics diverges holds still (:class:`~whexar.sim.world.SimWorld`):
+the scenario says so, a :class:`WorldDiverged` event, at its next sample and
+stops the run there (the summary's ``stopped_by``).
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ from whexar.actors.messages import (
     GaitSelected,
     LocomotionChanged,
     MotionCommand,
+    WorldDiverged,
     WorldFault,
 )
 from whexar.bus.emulator.chain import SERVO_CHAIN, ServoChain
@@ -83,7 +88,8 @@ IMU_ADDRESS: Final = 0x6B
 DEVICE_NAME: Final = "sim"
 """The name the run's servo chain, board and IMU bus are registered under."""
 WORLD_SOURCE: Final = "world"
-"""The ``source`` of the :class:`WorldFault` events the run says."""
+"""The ``source`` of the :class:`WorldFault` and :class:`WorldDiverged` events the run
+says."""
 
 
 @dataclass(frozen=True)
@@ -442,6 +448,8 @@ def simulate(
             tg.start_soon(functools.partial(recorder.run, h.sleep, runtime=h.runtime))
             await timeline_and_samples(h)
 
+    diverged: list[float] = []  # said once
+
     async def timeline_and_samples(h: Harness) -> None:
         pending = sorted(commands, key=lambda c: c[0])
         k = j = 0
@@ -462,6 +470,11 @@ def simulate(
                 x, y, z = world.base_position
                 qw, qx, qy, qz = world.base_quat
                 recorder.transform(h.now(), "world", "base", (x, y, z), (qx, qy, qz, qw))
+            if world.diverged_at is not None and not diverged:
+                diverged.append(world.diverged_at)
+                said = f"{world.divergence} (at {world.diverged_at:.3f} s)"
+                h.runtime.emit(WorldDiverged(t=h.now(), source=WORLD_SOURCE, detail=said))
+                h.runtime.request_stop(f"the simulated physics diverged: {said}")
             t += SAMPLE_PERIOD_S
             await world_until(h, t)
             await h.sleep_until(t)

@@ -34,6 +34,15 @@ motor make of its control table (:mod:`whexar.sim.motors`):
 Present Position and Velocity are the joint's; Present Current is τ / kt (the
 MX-28 reports Present Load, the same as a fraction of its stall current).
 
+*Divergence.* A world MuJoCo can no longer integrate (a non-finite or huge
+position, velocity or acceleration: a robot that tumbled for seconds down an
+endless 50° plane reached 23 m/s before it did) is not reset to the model's
+first pose, as MuJoCo would by default (the robot would stand up again where it
+started): the world goes back to its state at the start of that transaction,
+holds it still from then on, and says when (:attr:`SimWorld.diverged_at`,
+:attr:`SimWorld.divergence`); the run stops there (:mod:`whexar.sim.run`).
+MuJoCo's own line on stderr for it is not printed: the run says it.
+
 *Supply* (:mod:`whexar.sim.power`). Each step the world adds up what the
 servos' bridges draw from the 12 V line, Σ duty × winding current; with the
 standby currents and the electronics that is the supply current the thesis
@@ -60,6 +69,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import sys
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, fields
 from operator import is_not
@@ -102,6 +112,23 @@ _ROLLING_SHARE: Final = ROLLING_TRACTION / GROUND_FRICTION[0]
 """A rolling wheel's grip as a share of its static grip (:meth:`SimWorld._grip`)."""
 _GAINS_SPAN: Final = slice(76, 86)
 """Velocity I (76), Velocity P (78) … Position P Gain (84): the gain registers (e-manual)."""
+_INSTABILITIES: Final = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
+"""MuJoCo's warnings of a state it cannot integrate: the world has diverged."""
+_UNSTABLE: Final = "Nan, Inf or huge value in "
+"""How MuJoCo's text for each of them begins (mju_warningText)."""
+
+
+def _mujoco_warning(text: str) -> None:
+    """MuJoCo's warnings, as its own handler prints them to stderr but with no
+    ``MUJOCO_LOG.TXT`` left in the working folder; a divergence is the run's to say."""
+    if not text.startswith(_UNSTABLE):
+        sys.stderr.write(f"WARNING: {text}\n")
+
+
 SENSE_PERIOD_S: Final = 0.02
 """How often the simulated sensors are refreshed: 50 Hz, the rate the board samples its
 inputs at (firmware/PROTOCOL.md) and the IMU reader reads (``imu.rate_hz``)."""
@@ -283,7 +310,17 @@ class SimWorld:
         self.tilt = tilt
         """The board's tilt (:mod:`whexar.sim.tilt`): gravity turns with it."""
         self._g = float(np.linalg.norm(model.opt.gravity))
+        # A diverged step is held, not reset to the model's first pose (module docstring).
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+        if mujoco.get_mju_user_warning() is None:  # process-wide: every world's, once
+            mujoco.set_mju_user_warning(_mujoco_warning)
         self.data = mujoco.MjData(model)
+        self.diverged_at: float | None = None
+        """When the physics diverged (s), after which the world holds still; ``None``: it
+        has not."""
+        self.divergence = ""
+        """What diverged, in words (MuJoCo's warning: the quantity and the DOF)."""
+        self._instabilities = [self.data.warning[w] for w in _INSTABILITIES]
         self.chain = chain
         self.board = board
         self.imu = imu
@@ -509,6 +546,11 @@ class SimWorld:
         self._grip()
         qadr, dadr, act = self._qadr, self._dadr, self._act
         start, w0 = self.time, d.qvel[dadr].copy()  # a view when dadr is a slice
+        if self.diverged_at is not None:
+            self._hold(t)
+            return
+        held = d.qpos.copy()  # where a diverged step goes back to
+        bad_q, bad_v, bad_a = self._instabilities  # live views of MuJoCo's counters
         bridge_c = 0.0
         while self.time + h <= t + 1e-12:
             d.ctrl[act] = tau = self._control(d.qpos[qadr], d.qvel[dadr])
@@ -519,12 +561,43 @@ class SimWorld:
             mujoco.mj_step(m, d)
             self.steps += 1
             self.time = self.steps * h
+            if bad_q.number or bad_v.number or bad_a.number:
+                self._diverged(held)
+                self._hold(t)
+                return
         self._draw(bridge_c, self.time - start)
         w1 = d.qvel[dadr]
         self._amps = (self._torque / self._kt / self._load_scale).tolist()
         # The mean acceleration since the last transaction: what the servo's Moving and
         # profile registers are told (no register reports acceleration itself).
         self._read_joints(d.qpos[qadr], w1, (w1 - w0) / (self.time - start))
+        if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
+            self._sense()
+
+    def _diverged(self, held: np.ndarray) -> None:
+        """MuJoCo found the state non-finite or huge at this step: the world goes back to
+        ``held`` (qpos at the transaction's start), at rest, and says when and what."""
+        d = self.data
+        w, stat = next(
+            (w, s) for w, s in zip(_INSTABILITIES, self._instabilities, strict=True) if s.number
+        )
+        self.diverged_at = self.time
+        self.divergence = mujoco.mju_warningText(w, stat.lastinfo)
+        d.qpos[:] = held
+        d.qvel[:] = 0.0
+        d.qacc[:] = 0.0
+        d.qacc_warmstart[:] = 0.0
+        mujoco.mj_forward(self.model, d)
+
+    def _hold(self, t: float) -> None:
+        """A diverged world to bus time ``t``: the clock goes on, nothing moves; the servos
+        read their joints still, the sensors the pose held."""
+        while self.time + self.h <= t + 1e-12:
+            self.steps += 1
+            self.time = self.steps * self.h
+        self._draw(0.0, 0.0)
+        still = np.zeros(len(self.joints))
+        self._read_joints(self.data.qpos[self._qadr], still, still)
         if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
             self._sense()
 
