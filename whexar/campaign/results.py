@@ -21,7 +21,7 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 from whexar._json import dumps as strict_dumps
 from whexar.campaign.metrics import registry
@@ -157,6 +157,10 @@ def _numeric(rows: Sequence[Row], name: str) -> bool:
     )
 
 
+LEGEND_MAX: Final = 12
+"""Most lines a metric's plot labels in its legend."""
+
+
 def _plot(result: CampaignResult) -> Path | None:
     from whexar.record.plots import new_figure, save_figure
 
@@ -174,7 +178,9 @@ def _plot(result: CampaignResult) -> Path | None:
         )
     ]
     units = {m: registry()[m].unit for m in numeric}
-    fig, axes = new_figure(9, 2.4 * len(numeric) + 0.6, len(numeric), squeeze=False)
+    fig, axes = new_figure(
+        9, 2.4 * len(numeric) + 0.6, len(numeric), squeeze=False, layout="constrained"
+    )
     x_key = x_keys[0] if len(x_keys) == 1 else None
     for ax, m in zip(axes[:, 0], numeric, strict=True):
         if x_key is not None:
@@ -192,8 +198,10 @@ def _plot(result: CampaignResult) -> Path | None:
                     xs, ys = zip(*sorted(pts), strict=True)
                     ax.plot(xs, ys, marker="o", label=_legend(name))
             ax.set_xlabel(x_key)
-            if len(groups) > 1:
+            if 1 < len(groups) <= LEGEND_MAX:
                 ax.legend(fontsize=7)
+            elif len(groups) > LEGEND_MAX:  # a legend that tall leaves the plot no room
+                ax.set_title(f"{len(groups)} variations, one line each", fontsize=8)
         else:
             ids = list(range(len(rows)))
             values = [r.metrics.get(m) if r.metrics.get(m) is not None else math.nan for r in rows]
