@@ -30,6 +30,9 @@ from whexar.campaign.spec import REPORTS, config_note
 if TYPE_CHECKING:
     from whexar.campaign.rows import CampaignResult, Row
 
+LEGEND_MAX: Final = 12
+"""Most lines a metric's plot labels in its legend."""
+
 
 def write_results(result: CampaignResult) -> list[Path]:
     """Write every results file of ``result`` into its folder; the paths written."""
@@ -155,10 +158,6 @@ def _numeric(rows: Sequence[Row], name: str) -> bool:
     return bool(found) and all(
         isinstance(v, int | float) and not isinstance(v, bool) for v in found
     )
-
-
-LEGEND_MAX: Final = 12
-"""Most lines a metric's plot labels in its legend."""
 
 
 def _plot(result: CampaignResult) -> Path | None:

@@ -67,7 +67,7 @@ import tomli_w
 from pydantic import Field, ValidationError
 
 from whexar.campaign.metrics import Window, registry
-from whexar.config import load_config, parse_config
+from whexar.config import parse_config
 from whexar.errors import ConfigError, Problem
 from whexar.runtime.schema import (
     NonNegative,
@@ -79,7 +79,7 @@ from whexar.runtime.schema import (
     problem_from_error,
     read_toml,
 )
-from whexar.sim.scenario import ScenarioFile, parse_scenario, scenario_path
+from whexar.sim.scenario import ScenarioFile, parse_scenario, robot_config, scenario_path
 
 if TYPE_CHECKING:
     from whexar.sim.scenario import Scenario
@@ -321,7 +321,9 @@ def parse_campaign(
         problems.append(Problem("report", spec.report, f"a built-in report: {', '.join(REPORTS)}"))
     base_doc, base_folder = _base_scenario(spec.scenario, folder, problems)
     if config is not None and base_doc is not None:
-        base_doc["config"] = str(_robot_config(Path(config), problems))
+        # Checked once, here, so that its problems are named once and not per run.
+        robot_config(str(config), Path.cwd(), problems)
+        base_doc["config"] = str(Path(config).resolve())
     variations = _variations(spec, problems)
     if problems or base_doc is None:
         raise ConfigError(source, problems)
@@ -365,17 +367,6 @@ def _base_scenario(
         found = "; ".join(str(p) for p in exc.problems)
         problems.append(Problem("scenario", name, f"a readable scenario; {found}"))
         return None, folder
-
-
-def _robot_config(path: Path, problems: list[Problem]) -> Path:
-    """``path`` resolved, once checked whole: its problems are named once, not per run."""
-    try:
-        load_config(path)
-    except ConfigError as exc:
-        found = "; ".join(str(p) for p in exc.problems)
-        allowed = f"a robot configuration without problems; {found}"
-        problems.append(Problem("config", str(path), allowed))
-    return path.resolve()
 
 
 def _base_config(doc: Mapping[str, Any], folder: Path, problems: list[Problem]) -> dict[str, Any]:

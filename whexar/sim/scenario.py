@@ -503,7 +503,7 @@ def parse_scenario(
             check_world_faults(world, RobotConfig().servos(), problems)
         raise ConfigError(source, problems) from None
     problems = spec.problems()
-    cfg = _config(spec.config, folder, problems)
+    cfg = robot_config(spec.config, folder, problems)
     faults = _faults(spec.faults, folder, problems)
     if faults is not None and spec.supply.kind == "lipo" and _sags(faults):
         problems.append(
@@ -552,7 +552,9 @@ def parse_scenario(
 # --------------------------------------------------------------------------- the parts
 
 
-def _config(name: str | None, folder: Path, problems: list[Problem]) -> RobotConfig | None:
+def robot_config(name: str | None, folder: Path, problems: list[Problem]) -> RobotConfig | None:
+    """The robot configuration file ``name`` (from ``folder``; ``None``: the defaults), or
+    ``None`` with its problems added as one of the key ``config``."""
     if name is None:
         return RobotConfig()
     try:
@@ -763,6 +765,7 @@ __all__ = [
     "describe_command",
     "load_scenario",
     "parse_scenario",
+    "robot_config",
     "scenario_names",
     "scenario_path",
 ]
