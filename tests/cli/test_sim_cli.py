@@ -111,3 +111,6 @@ def test_the_terminal_summary_lines_its_values_up() -> None:
     starts = {len(line) - len(line.rstrip().split("  ")[-1].lstrip()) for line in lines}
     assert len(starts) == 1
     assert all("  " in line.strip() for line in lines)
+    assert summary_text("course", summary).splitlines()[0] == "whexar sim: course"
+    header = summary_text("course", summary, Path("robot.toml")).splitlines()[0]
+    assert header == "whexar sim: course, robot configuration robot.toml"

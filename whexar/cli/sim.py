@@ -214,11 +214,21 @@ def _callbacks(*found: Callable[[Sample, SimWorld], None] | None) -> Callable[..
     return each
 
 
-def summary_text(name: str, summary: dict[str, Any]) -> str:
-    """The summary for the terminal: one figure a line, with units."""
+def _shown(path: Path) -> str:
+    """``path`` as short as it reads: from the working folder when it lies under it."""
+    full = path.resolve()
+    try:
+        return str(full.relative_to(Path.cwd()))
+    except ValueError:
+        return str(full)
+
+
+def summary_text(name: str, summary: dict[str, Any], config: Path | None = None) -> str:
+    """The summary for the terminal: one figure a line, with units; the header names the
+    robot configuration file the run read, if not the defaults."""
     from whexar.sim.report import FIGURES, format_figure
 
-    lines = [f"whexar sim: {name}"]
+    lines = [f"whexar sim: {name}" + (f", robot configuration {_shown(config)}" if config else "")]
     width = max(len(FIGURES[key][0]) for key in SUMMARY_KEYS) + 2  # the longest label, a gap
     for key in SUMMARY_KEYS:
         label = FIGURES[key][0]
@@ -335,7 +345,7 @@ def _sim(args: argparse.Namespace) -> int:
     if args.json:
         print_json({key: summary.get(key) for key in SUMMARY_KEYS})
     else:
-        print(summary_text(scenario.name, summary))
+        print(summary_text(scenario.name, summary, scenario.config_path))
     return 0
 
 
