@@ -448,8 +448,6 @@ def simulate(
             tg.start_soon(functools.partial(recorder.run, h.sleep, runtime=h.runtime))
             await timeline_and_samples(h)
 
-    diverged: list[float] = []  # said once
-
     async def timeline_and_samples(h: Harness) -> None:
         pending = sorted(commands, key=lambda c: c[0])
         k = j = 0
@@ -470,8 +468,7 @@ def simulate(
                 x, y, z = world.base_position
                 qw, qx, qy, qz = world.base_quat
                 recorder.transform(h.now(), "world", "base", (x, y, z), (qx, qy, qz, qw))
-            if world.diverged_at is not None and not diverged:
-                diverged.append(world.diverged_at)
+            if world.diverged_at is not None and not h.runtime.stopping:  # said once
                 said = f"{world.divergence} (at {world.diverged_at:.3f} s)"
                 h.runtime.emit(WorldDiverged(t=h.now(), source=WORLD_SOURCE, detail=said))
                 h.runtime.request_stop(f"the simulated physics diverged: {said}")

@@ -539,6 +539,9 @@ class SimWorld:
         """Step the physics until the next step would pass bus time ``t``."""
         if self.time + self.h > t + 1e-12:
             return
+        if self.diverged_at is not None:
+            self._hold(t)
+            return
         self._orders()
         m, d, h = self.model, self.data, self.h
         if self.tilt is not None:  # a board raised by degrees a second: per transaction
@@ -546,9 +549,6 @@ class SimWorld:
         self._grip()
         qadr, dadr, act = self._qadr, self._dadr, self._act
         start, w0 = self.time, d.qvel[dadr].copy()  # a view when dadr is a slice
-        if self.diverged_at is not None:
-            self._hold(t)
-            return
         held = d.qpos.copy()  # where a diverged step goes back to
         bad_q, bad_v, bad_a = self._instabilities  # live views of MuJoCo's counters
         bridge_c = 0.0
@@ -595,7 +595,6 @@ class SimWorld:
         while self.time + self.h <= t + 1e-12:
             self.steps += 1
             self.time = self.steps * self.h
-        self._draw(0.0, 0.0)
         still = np.zeros(len(self.joints))
         self._read_joints(self.data.qpos[self._qadr], still, still)
         if self.time - self._sensed_at >= SENSE_PERIOD_S - 1e-12:
