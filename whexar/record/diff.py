@@ -586,7 +586,9 @@ class TimeDiff:
         self._events: dict[tuple[str, str], tuple[EventRow, deque[Message], deque[Message]]] = {}
         self._event_rows: dict[tuple[str, str], EventRow] = {}
         self.compared = 0
-        self._dirty: set[Key] = set()
+        # Ordered (a dict, not a set): the order keys are compared in decides sums and ties
+        # in the report, which must not change with the process's string hashing.
+        self._dirty: dict[Key, None] = {}
 
     # ----------------------------------------------------------------- feeding
 
@@ -615,7 +617,7 @@ class TimeDiff:
                 row = self._row(channel, name, fname, kind)
                 signal = self._signals[key] = _Signal(row, " ".join(about[1:]) or about[0])
             (signal.first if first else signal.second).append((t, value))
-            self._dirty.add(key)
+            self._dirty[key] = None
 
     def _row(self, channel: str, message: str, fname: str, kind: str) -> FieldRow:
         generic = fname.split("[")[0] + ("[]" if "[" in fname else "")
@@ -706,13 +708,14 @@ class TimeDiff:
     def advance(self, t: float) -> None:
         """Both runs are fed up to ``t``: compare what lies a window behind it."""
         frontier = t - self.tol.window_s
-        done = set()
+        done = []
         for key in self._dirty:
             signal = self._signals[key]
             self._compare(signal, frontier)
             if not signal.first and not signal.second:
-                done.add(key)
-        self._dirty -= done
+                done.append(key)
+        for key in done:
+            del self._dirty[key]
 
     def _compare(self, s: _Signal, frontier: float) -> None:
         w = self.tol.window_s
