@@ -18,11 +18,14 @@ import pytest
 
 from whexar.cli import main
 from whexar.record.reader import Recording
-from whexar.record.replay import recorded_clock, replay
+from whexar.record.replay import ReplayResult, recorded_clock, replay
 from whexar.testing.field import ROOT, record_field_log, write_script
 
-# Each log takes as long as it records, on the wall clock, against the emulator over a pty.
-pytestmark = [pytest.mark.slow, pytest.mark.serial]
+# Each log takes as long as it records, on the wall clock, against the emulator over a pty,
+# and is recorded once for the module: its tests stay on one worker (xdist_group). They
+# run beside the other slow tests, not alone: a log of a real clock is made on a busy
+# machine too, and the check by time allows for it (docs/replay.md, "Field logs").
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("field-logs")]
 
 WALK: list[dict[str, object]] = [{"t": 3.0, "vx_m_s": 0.08}]
 RIDE: list[dict[str, object]] = [{"t": 3.0, "mode": "ride", "vx_m_s": 0.1}]
@@ -53,13 +56,25 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]:
     return get
 
 
+@pytest.fixture(scope="module")
+def checked(logs: Callable[[str], Path]) -> Callable[[str], ReplayResult]:
+    """The unchanged replay of each field log with ``--check``, made once for the module."""
+    made: dict[str, ReplayResult] = {}
+
+    def get(name: str) -> ReplayResult:
+        if name not in made:
+            made[name] = replay(logs(name), check=True)
+        return made[name]
+
+    return get
+
+
 @pytest.mark.parametrize("name", ["walk", "ride", "overload", "brownout"])
 def test_a_field_log_replays_to_its_end_and_agrees_with_itself(
-    logs: Callable[[str], Path], name: str
+    logs: Callable[[str], Path], checked: Callable[[str], ReplayResult], name: str
 ) -> None:
-    log = logs(name)
-    assert recorded_clock(Recording(log)) == "real"
-    result = replay(log, check=True)
+    assert recorded_clock(Recording(logs(name))) == "real"
+    result = checked(name)
     assert result.clock == "real"
     assert result.ended_early is None, result.ended_early
     assert result.duration_s == pytest.approx(result.recorded_s, abs=0.05)
@@ -70,9 +85,9 @@ def test_a_field_log_replays_to_its_end_and_agrees_with_itself(
 
 
 def test_the_overload_log_replays_the_servos_fault_and_its_recovery(
-    logs: Callable[[str], Path],
+    checked: Callable[[str], ReplayResult],
 ) -> None:
-    result = replay(logs("overload"), check=True)
+    result = checked("overload")
     assert result.report is not None
     kinds = {e.kind for e in result.report.events}
     assert {"HardwareFault", "ServoRebooted", "ServoRestored"} <= kinds, kinds
