@@ -53,9 +53,8 @@ check: lint typecheck
 # and the OpenGL libraries): every test once. The slow tests in two steps: on two workers,
 # then those marked serial one at a time (pyproject.toml: ptys, signals, real-time
 # emulators, tight bounds on the wall clock), where no other test's load can fail them.
-# Tests sharing an expensive module fixture keep to one worker (pytest.mark.xdist_group).
 test: check firmware gl
-	$(BIN)/pytest -q -m "slow and not serial" -n 2 --dist loadgroup
+	$(BIN)/pytest -q -m "slow and not serial" -n 2
 	$(BIN)/pytest -q -m "slow and serial"
 
 # Headless OpenGL for MuJoCo's renderer (the sim's video and its test): EGL or

@@ -21,11 +21,8 @@ from whexar.record.reader import Recording
 from whexar.record.replay import ReplayResult, recorded_clock, replay
 from whexar.testing.field import ROOT, record_field_log, write_script
 
-# Each log takes as long as it records, on the wall clock, against the emulator over a pty,
-# and is recorded once for the module: its tests stay on one worker (xdist_group). They
-# run beside the other slow tests, not alone: a log of a real clock is made on a busy
-# machine too, and the check by time allows for it (docs/replay.md, "Field logs").
-pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("field-logs")]
+# Each log takes as long as it records, on the wall clock, against the emulator over a pty.
+pytestmark = [pytest.mark.slow, pytest.mark.serial]
 
 WALK: list[dict[str, object]] = [{"t": 3.0, "vx_m_s": 0.08}]
 RIDE: list[dict[str, object]] = [{"t": 3.0, "mode": "ride", "vx_m_s": 0.1}]
