@@ -263,55 +263,79 @@ def _about_parts(record: object) -> tuple[str, ...]:
     return tuple(parts)
 
 
-def _items(record: object) -> Iterator[tuple[str, object]]:
-    if is_dataclass(record):
-        for f in fields(record):
-            yield f.name, getattr(record, f.name)
-    elif isinstance(record, tuple) and hasattr(record, "_fields"):  # a named tuple
-        yield from zip(record._fields, record, strict=True)
+Sample = tuple[tuple[str, ...], str, str, Value]
+"""One compared field of a message: ``(about, field, kind, value)``."""
 
 
-def samples(msg: Message) -> Iterator[tuple[tuple[str, ...], str, str, Value]]:
+def _compared_fields(tp: type) -> tuple[str, ...]:
+    """The fields of a record type that are signals: not the time, who said it, counters
+    or what it is about (a dataclass's fields, a named tuple's), in their order."""
+    found = _FIELDS.get(tp)
+    if found is None:
+        names: Iterable[str] = (
+            (f.name for f in fields(tp)) if is_dataclass(tp) else getattr(tp, "_fields", ())
+        )
+        found = _FIELDS[tp] = tuple(n for n in names if n not in _SKIPPED and n not in _IDENTITY)
+    return found
+
+
+def _is_record(tp: type) -> bool:
+    found = _RECORD.get(tp)
+    if found is None:
+        found = _RECORD[tp] = is_dataclass(tp) or hasattr(tp, "_fields")
+    return found
+
+
+_FIELDS: dict[type, tuple[str, ...]] = {}
+_RECORD: dict[type, bool] = {}
+
+
+@functools.cache
+def _indexed(name: str, index: int) -> str:
+    return f"{name}[{index}]"
+
+
+def samples(msg: Message) -> list[Sample]:
     """The signals of ``msg``: ``(about, field, kind, value)`` for every compared field.
 
     Sequences of records (a cycle's joints, a message's goals) give each element's
-    fields, keyed by what the element is about; tuples of numbers give one per item."""
+    fields, keyed by what the element is about; tuples of numbers give one per item.
+    Built into one list, each type's fields looked up once (a replay's check takes
+    some 20 samples from each of tens of thousands of messages)."""
+    out: list[Sample] = []
     about = (f"from {msg.source}", *_about(msg))
-    for name, value in _items(msg):
-        if name in _SKIPPED or name in _IDENTITY:
-            continue
-        yield from _field(about, name, value)
+    for name in _compared_fields(type(msg)):
+        _field(out, about, name, getattr(msg, name))
+    return out
 
 
-def _field(
-    about: tuple[str, ...], name: str, value: object
-) -> Iterator[tuple[tuple[str, ...], str, str, Value]]:
+def _field(out: list[Sample], about: tuple[str, ...], name: str, value: object) -> None:
     if isinstance(value, tuple | list):
-        if value and (is_dataclass(value[0]) or hasattr(value[0], "_fields")):
+        if value and _is_record(type(value[0])):
             for element in value:
                 inner = (*about, *_about(element))
-                for sub, item in _items(element):
-                    if sub not in _SKIPPED and sub not in _IDENTITY:
-                        yield from _field(inner, sub, item)
+                for sub in _compared_fields(type(element)):
+                    _field(out, inner, sub, getattr(element, sub))
             return
         if all(isinstance(v, int | float | type(None)) and not isinstance(v, bool) for v in value):
             for i, item in enumerate(value):
-                yield (
-                    about,
-                    f"{name}[{i}]",
-                    _kind(name, item if item is not None else 0.0, i),
-                    (None if item is None else float(item)),
+                out.append(
+                    (
+                        about,
+                        _indexed(name, i),
+                        _kind(name, item if item is not None else 0.0, i),
+                        (None if item is None else float(item)),
+                    )
                 )
             return
-        yield about, name, "label", repr(value)
+        out.append((about, name, "label", repr(value)))
         return
     if isinstance(value, bool | str) or value is None:
-        yield about, name, _kind(name, value), value
+        out.append((about, name, _kind(name, value), value))
     elif isinstance(value, int | float):
-        kind = _kind(name, value)
-        yield about, name, kind, float(value)
+        out.append((about, name, _kind(name, value), float(value)))
     else:
-        yield about, name, "label", repr(value)
+        out.append((about, name, "label", repr(value)))
 
 
 def _difference(kind: str, a: Value, b: Value) -> float:
@@ -610,14 +634,15 @@ class TimeDiff:
             self._event(channel, msg, first)
             return
         t = msg.t
+        signals, dirty = self._signals, self._dirty
         for about, fname, kind, value in samples(msg):
             key = (channel, name, *about, fname)
-            signal = self._signals.get(key)
+            signal = signals.get(key)
             if signal is None:
                 row = self._row(channel, name, fname, kind)
-                signal = self._signals[key] = _Signal(row, " ".join(about[1:]) or about[0])
+                signal = signals[key] = _Signal(row, " ".join(about[1:]) or about[0])
             (signal.first if first else signal.second).append((t, value))
-            self._dirty[key] = None
+            dirty[key] = None
 
     def _row(self, channel: str, message: str, fname: str, kind: str) -> FieldRow:
         generic = fname.split("[")[0] + ("[]" if "[" in fname else "")
@@ -667,7 +692,8 @@ class TimeDiff:
             row.late += 1
         if type(b) is not type(a):
             return
-        sa, sb = samples(a), samples(b)
+        sa: Iterable[Sample] = samples(a)
+        sb: Iterable[Sample] = samples(b)
         if health:  # which servos happened to be read first: not compared
             sa = (x for x in sa if x[1].split("[")[0] not in _READ_ORDER)
             sb = (x for x in sb if x[1].split("[")[0] not in _READ_ORDER)
