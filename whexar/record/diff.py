@@ -382,36 +382,47 @@ def _nearest(
                 best = d
         return best
     period = 2 * math.pi if kind == "angle" else 1.0 if kind == "phase" else 0.0
+    half = period / 2
     lo_t, hi_t = t - w, t + w
     low, high = math.inf, -math.inf
-    prev: tuple[float, float] | None = None
+    u1 = v1 = math.nan  # the previous sample, once there is one
+    seen = False
     wrap = period and math.isfinite(value)
     # One pass, in time order: the held sample, then those of the window and the first
     # after it. The line's range only grows: once it holds ``value``, that is the answer.
-    for item in itertools.chain((held,) if held is not None else (), samples):
-        u, other = item
+    # (Written out, comparisons for min and max: tens of thousands of calls a replay.)
+    for u, other in itertools.chain((held,), samples) if held is not None else samples:
         if not isinstance(other, float) or other != other:  # a flag, or NaN
             continue
         if wrap and math.isfinite(other):
-            other = value + ((other - value + period / 2) % period - period / 2)
-        if prev is not None:
-            u1, v1 = prev
-            if u1 < u:
-                for edge in (lo_t, hi_t):  # where the line crosses the window's edges
-                    if u1 < edge < u:
-                        x = v1 + (other - v1) * (edge - u1) / (u - u1)
-                        low, high = min(low, x), max(high, x)
+            other = value + ((other - value + half) % period - half)
+        if seen and u1 < u:  # where the line crosses the window's edges
+            if u1 < lo_t < u:
+                x = v1 + (other - v1) * (lo_t - u1) / (u - u1)
+                if x < low:
+                    low = x
+                if x > high:
+                    high = x
+            if u1 < hi_t < u:
+                x = v1 + (other - v1) * (hi_t - u1) / (u - u1)
+                if x < low:
+                    low = x
+                if x > high:
+                    high = x
         if lo_t <= u <= hi_t:
-            low, high = min(low, other), max(high, other)
+            if other < low:
+                low = other
+            if other > high:
+                high = other
         if low <= value <= high:
             return 0.0
-        prev = (u, other)
+        u1, v1, seen = u, other, True
         if u > hi_t:
             break
     if low > high:  # nothing in the window: the last sample before it holds
-        if prev is None:
+        if not seen:
             return math.inf
-        low = high = prev[1]
+        low = high = v1
     if low <= value <= high:
         return 0.0
     d = min(abs(value - low), abs(value - high))
