@@ -396,19 +396,14 @@ def _nearest(
             continue
         if wrap and math.isfinite(other):
             other = value + ((other - value + half) % period - half)
-        if seen and u1 < u:  # where the line crosses the window's edges
-            if u1 < lo_t < u:
-                x = v1 + (other - v1) * (lo_t - u1) / (u - u1)
-                if x < low:
-                    low = x
-                if x > high:
-                    high = x
-            if u1 < hi_t < u:
-                x = v1 + (other - v1) * (hi_t - u1) / (u - u1)
-                if x < low:
-                    low = x
-                if x > high:
-                    high = x
+        if seen and (u1 < lo_t < u or u1 < hi_t < u):
+            for edge in (lo_t, hi_t):  # where the line crosses the window's edges
+                if u1 < edge < u:
+                    x = v1 + (other - v1) * (edge - u1) / (u - u1)
+                    if x < low:
+                        low = x
+                    if x > high:
+                        high = x
         if lo_t <= u <= hi_t:
             if other < low:
                 low = other
