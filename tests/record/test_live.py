@@ -46,7 +46,11 @@ class Client(threading.Thread):
         asyncio.run(self._run())
 
     async def _run(self) -> None:
-        async with websockets.connect(self.url, subprotocols=[SUBPROTOCOL]) as ws:
+        # The app-side close: the server may leave the closing handshake unanswered, and a
+        # client waiting out its 10 s default only slows the test (close_timeout).
+        async with websockets.connect(
+            self.url, subprotocols=[SUBPROTOCOL], close_timeout=1.0
+        ) as ws:
             self.info = json.loads(await ws.recv())
             # A client that tries to command: advertise a channel and publish on it.
             await ws.send(
@@ -100,6 +104,7 @@ def test_a_live_run_reaches_a_client_and_nothing_the_client_sends_reaches_the_ru
         )
         client.stop.set()
         client.join(10)
+        assert not client.is_alive()
     assert client.info["op"] == "serverInfo"
     assert client.info["capabilities"] == []  # no client publishing, parameters, services
     assert served.world.state_hash() == plain.world.state_hash()
