@@ -4,6 +4,7 @@ and the report names the joints and the time."""
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -56,14 +57,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Path]:
 @pytest.fixture(scope="module")
 def checked(logs: Callable[[str], Path]) -> Callable[[str], ReplayResult]:
     """The unchanged replay of each field log with ``--check``, made once for the module."""
-    made: dict[str, ReplayResult] = {}
-
-    def get(name: str) -> ReplayResult:
-        if name not in made:
-            made[name] = replay(logs(name), check=True)
-        return made[name]
-
-    return get
+    return functools.cache(lambda name: replay(logs(name), check=True))
 
 
 @pytest.mark.parametrize("name", ["walk", "ride", "overload", "brownout"])
