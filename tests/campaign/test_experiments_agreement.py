@@ -102,3 +102,22 @@ def test_an_empty_table_has_no_median() -> None:
     a = agreement([])
     assert a.median_deviation is None
     assert agreement_lines(a)[0].endswith("none.")
+
+
+def test_a_figure_measured_a_second_way_is_named_apart_and_never_counted() -> None:
+    board = _f("steepest", 32, 36.6)  # 14 %
+    planes = Figure(name="steepest: planes", unit="°", thesis=32, sim=32, counted=False)
+    far = Figure(name="stood: planes", unit="°", thesis=50, sim=20, counted=False)  # ×0.4
+    none = Figure(name="ridden: planes", unit="°", thesis=40, sim=None, counted=False)
+    a = agreement([board, planes, far, none])
+    assert [c.figure.name for c in a.numbers] == ["steepest"]
+    assert a.median_deviation == pytest.approx(0.1437, abs=1e-4)
+    assert a.far_off == ()  # the second way's far row is not among them
+    assert a.without_value == ()
+    assert [c.figure.name for c in a.second] == ["steepest: planes", "stood: planes"]
+    assert [c["name"] for c in a.to_json()["second"]] == ["steepest: planes", "stood: planes"]
+    lines = agreement_lines(a)
+    assert "2 measured a second way, not counted above: 1 equal to the thesis's; the others:" in (
+        lines
+    )
+    assert "  stood: planes: 20 against 50° (60 % off)" in lines

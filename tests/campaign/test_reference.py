@@ -107,7 +107,7 @@ def test_the_shipped_file_loads_with_the_thesis_figures() -> None:
 def test_every_explanation_named_exists_and_says_something() -> None:
     ref = reference()
     named = {f.why for f in ref.figures} | {ref.steepest.why}
-    named |= {s.why for s in ref.steepest.slopes}
+    named |= {s.why for s in ref.steepest.slopes} | {s.sweep_why for s in ref.steepest.slopes}
     named |= {ref.table_6_7.current_why, ref.table_6_7.cot_why, *ref.table_6_7.speed_why.values()}
     named.discard(None)
     assert named == set(ref.why), "an explanation nobody names, or one named and missing"
@@ -170,6 +170,14 @@ def test_every_explanation_named_exists_and_says_something() -> None:
         (
             lambda d: d["steepest"]["slopes"][0].update(failed_deg=32),
             "steepest.slopes[0].failed_deg = 32: above thesis_deg (32)",
+        ),
+        (
+            lambda d: d["steepest"]["slopes"][2].update(sweep_why="fixed_stance"),
+            "steepest.slopes[2].sweep_why = 'fixed_stance': the name of an explanation of [why]",
+        ),
+        (
+            lambda d: d["steepest"].update(sweep_note="the {label} runs"),
+            "steepest.sweep_note = 'the {label} runs': a note quoting only {runs}",
         ),
         (
             lambda d: d["steepest"]["slopes"][0].update(why="steepest_walking"),

@@ -16,7 +16,10 @@ asks first:
   the bound it misses.
 
 A row with a thesis figure and no number from the simulation (the run failed, or
-the figure is not simulated) is named apart: it is neither close nor far.
+the figure is not simulated) is named apart: it is neither close nor far. So is a
+row measured a second way beside one that is counted (``Figure.counted`` false: the
+steepest slopes on Table 6.6's fixed inclinations, beside the tilting board's),
+so that no figure of the thesis counts twice.
 Over seeds, the simulation's figure is the median the table shows.
 """
 
@@ -113,6 +116,9 @@ class Agreement:
     """The rows whose thesis figure is a range or a bound."""
     without_value: tuple[Figure, ...]
     """Rows with a thesis figure and no number from the simulation."""
+    second: tuple[Compared, ...] = ()
+    """The rows measured a second way (``Figure.counted`` false), set against the thesis:
+    in none of the counts above."""
 
     @property
     def median_deviation(self) -> float | None:
@@ -144,6 +150,7 @@ class Agreement:
             "far_off": [c.to_json() for c in self.far_off],
             "outside": [c.to_json() for c in self.outside],
             "without_value": [f.name for f in self.without_value],
+            "second": [c.to_json() for c in self.second],
         }
 
 
@@ -152,15 +159,19 @@ def agreement(found: Sequence[Figure]) -> Agreement:
     numbers: list[Compared] = []
     ranges: list[Compared] = []
     without: list[Figure] = []
+    second: list[Compared] = []
     for f in found:
         if f.thesis is None:
             continue
         c = compare(f)
-        if c is not None:
+        if not f.counted:
+            if c is not None:
+                second.append(c)
+        elif c is not None:
             (ranges if isinstance(f.thesis, str) else numbers).append(c)
         elif not _number(f.sim):
             without.append(f)
-    return Agreement(tuple(numbers), tuple(ranges), tuple(without))
+    return Agreement(tuple(numbers), tuple(ranges), tuple(without), tuple(second))
 
 
 __all__ = ["FAR_RATIO", "Agreement", "Compared", "agreement", "bounds", "compare"]

@@ -40,7 +40,14 @@ from typing import TYPE_CHECKING, Any, Final, TypeAlias
 
 from whexar.actors.locomotion.intent import POSE_LIMIT_RAD
 from whexar.campaign.experiments.metrics import TILT_SPAN_S
-from whexar.campaign.experiments.reference import Reference, Rules, Single, Why, reference
+from whexar.campaign.experiments.reference import (
+    Reference,
+    Rules,
+    Single,
+    SteepestSlope,
+    Why,
+    reference,
+)
 from whexar.config.motion import LocomotionSpec
 from whexar.sim.scenario import TiltSpec
 
@@ -88,10 +95,15 @@ class Figure:
     """How many seeds the figure is the median of (1: one world)."""
     spread: tuple[float, float] | None = None
     """The smallest and largest of the seeds' numbers (``None``: one seed, or no number)."""
+    counted: bool = True
+    """Whether the agreement counts the row (:mod:`~whexar.campaign.experiments.agreement`):
+    ``False`` for a figure measured a second way beside a row that is counted, so that no
+    figure of the thesis counts twice (the steepest slopes on Table 6.6's inclinations)."""
 
     def to_json(self) -> dict[str, Any]:
-        """``{"name", "unit", "thesis", "sim"}``, and over seeds ``"seeds"`` and
-        ``"spread"`` ([min, max]): the row of ``whexar sim --experiments --json``."""
+        """``{"name", "unit", "thesis", "sim"}``, over seeds ``"seeds"`` and ``"spread"``
+        ([min, max]), and ``"counted": false`` for a row the agreement does not count: the
+        row of ``whexar sim --experiments --json``."""
         out: dict[str, Any] = {
             "name": self.name,
             "unit": self.unit,
@@ -101,6 +113,8 @@ class Figure:
         if self.seeds > 1:
             out["seeds"] = self.seeds
             out["spread"] = None if self.spread is None else list(self.spread)
+        if not self.counted:
+            out["counted"] = False
         return out
 
 
@@ -485,7 +499,44 @@ def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
                 tried=ref.table_6_6.slopes_deg,
             )
         )
+        if s.sweep is not None:
+            out.append(_inclinations(ref, rows, s, name, tolerance))
     return out
+
+
+def _inclinations(
+    ref: Reference, rows: Sequence[Row], s: SteepestSlope, name: str, tolerance: float
+) -> Figure:
+    """The steepest slope as the thesis's protocol gives it: the last of the fixed
+    inclinations (``s.sweep``'s runs) managed with every one below it; its note says what
+    the next one did. Not counted in the agreement: the board's row measures the figure."""
+    assert s.sweep is not None
+    spec, rules = ref.steepest, ref.rules
+    judge = judge_of(s.sweep)
+    tested = sorted(
+        (r for r in rows if r.label == s.sweep and trochanter_of(r) == s.trochanter),
+        key=slope_of,
+    )
+    found = steepest(tested, s.sweep, s.trochanter, rules)
+    failed = next((r for r in tested if judge(r, rules) is not True), None)
+    if failed is not None:
+        why_not = _outcome_note(failed, judge, rules) or "not judged, a metric is missing."
+        next_one = f"On {slope_of(failed):g}°: {why_not}"
+    elif tested:
+        next_one = f"Every slope tested passed: the limit lies above {slope_of(tested[-1]):g}°."
+    else:
+        next_one = "The campaign has no such runs."
+    figure = _figure(
+        f"{name}: Table 6.6's planes",
+        "°",
+        s.thesis_deg,
+        found,
+        source=spec.source,
+        why=ref.explain(s.sweep_why),
+        tolerance=tolerance,
+        note=_joined(spec.sweep_note.format(runs=s.sweep), next_one),
+    )
+    return replace(figure, counted=False)
 
 
 def _bracket(

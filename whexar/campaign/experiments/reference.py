@@ -94,6 +94,7 @@ CompareNote = Annotated[str, AfterValidator(_template("this", "other"))]
 SavingNote = Annotated[str, AfterValidator(_template("one", "three"))]
 PitchNote = Annotated[str, AfterValidator(_template("slope", "limit"))]
 LimitNote = Annotated[str, AfterValidator(_template("limit"))]
+SweepNote = Annotated[str, AfterValidator(_template("runs"))]
 
 
 class Why(Section):
@@ -242,6 +243,14 @@ class SteepestSlope(Section):
     from ``thesis_deg`` up to this."""
     why: str | None = None
     """The explanation of [why] for this slope; ``None``: the section's."""
+    sweep: Label | None = None
+    """The campaign's runs on Table 6.6's fixed inclinations for the same mode (``tripod``,
+    ``wheels``, a stance's): the last inclination they managed, with every one below it,
+    is the figure the thesis's protocol gives (6.7.6: "different inclinations of the board
+    were sequentially set"). A second measurement beside ``label``'s, which the agreement
+    does not count; ``None``: none."""
+    sweep_why: str | None = None
+    """The explanation of [why] for the row from :attr:`sweep`; ``None``: none."""
 
 
 class Steepest(Section):
@@ -250,6 +259,9 @@ class Steepest(Section):
     source: Label
     tolerance: Tolerance | None = None
     why: str | None = None
+    sweep_note: SweepNote = ""
+    """The note of every row from the fixed inclinations (:attr:`SteepestSlope.sweep`),
+    quoting ``{runs}``, their runs' label."""
     slopes: tuple[SteepestSlope, ...] = Field(min_length=1)
 
     def thesis(self, mode: str, trochanter: bool) -> int | float | None:
@@ -313,6 +325,7 @@ class Reference(CheckedSection):
                 found.append(Problem(f"steepest.slopes[{i}].mode", pair[0], allowed))
         for i, slope in enumerate(self.steepest.slopes):
             why(f"steepest.slopes[{i}].why", slope.why)
+            why(f"steepest.slopes[{i}].sweep_why", slope.sweep_why)
             if slope.failed_deg is not None and slope.failed_deg <= slope.thesis_deg:
                 above = f"above thesis_deg ({slope.thesis_deg:g})"
                 found.append(Problem(f"steepest.slopes[{i}].failed_deg", slope.failed_deg, above))

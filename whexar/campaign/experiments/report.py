@@ -106,6 +106,13 @@ def agreement_lines(a: Agreement, bullet: str = "") -> list[str]:
     if a.without_value:
         lines.append(f"{bullet}{len(a.without_value)} with no number from the simulation:")
         lines += [sub + f.name for f in a.without_value]
+    if a.second:
+        same = sum(c.deviation == 0 for c in a.second)
+        lines.append(
+            f"{bullet}{len(a.second)} measured a second way, not counted above: "
+            f"{same} equal to the thesis's" + ("; the others:" if same < len(a.second) else ".")
+        )
+        lines += [sub + _compared(c) for c in a.second if c.deviation != 0]
     return lines
 
 
