@@ -215,6 +215,14 @@ def steepest(
 ) -> float | None:
     """The highest tested slope (°) with every tested slope up to it passed; ``None`` when
     the lowest failed or nothing was tested."""
+    return _sweep(rows, label, trochanter, rules)[1]
+
+
+def _sweep(
+    rows: Iterable[Row], label: str, trochanter: bool, rules: Rules | None
+) -> tuple[list[Row], float | None, Row | None]:
+    """The runs of ``label`` by slope, :func:`steepest`'s answer and the first run that
+    did not pass (``None``: every one passed)."""
     judge = judge_of(label)
     tested = sorted(
         (r for r in rows if r.label == label and trochanter_of(r) == trochanter), key=slope_of
@@ -222,9 +230,9 @@ def steepest(
     best: float | None = None
     for row in tested:
         if judge(row, rules) is not True:
-            break
+            return tested, best, row
         best = slope_of(row)
-    return best
+    return tested, best, None
 
 
 # --------------------------------------------------------------------------- notes
@@ -462,14 +470,8 @@ def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
                     "at or above it; the run should be longer or the board steeper."
                 )
         else:
-            tested = sorted(
-                {
-                    slope_of(r)
-                    for r in rows
-                    if r.label == s.label and trochanter_of(r) == s.trochanter
-                }
-            )
-            found = steepest(rows, s.label, s.trochanter, ref.rules)
+            runs, found, _ = _sweep(rows, s.label, s.trochanter, ref.rules)
+            tested = [slope_of(r) for r in runs]
             if tested and found == tested[-1]:
                 note = f"Every slope tested passed: the limit lies above {tested[-1]:g}°."
             elif found is None and tested:
@@ -500,27 +502,27 @@ def _steepest(ref: Reference, rows: Sequence[Row]) -> list[Figure]:
             )
         )
         if s.sweep is not None:
-            out.append(_inclinations(ref, rows, s, name, tolerance))
+            out.append(_on_planes(ref, rows, s, s.sweep, name, tolerance))
     return out
 
 
-def _inclinations(
-    ref: Reference, rows: Sequence[Row], s: SteepestSlope, name: str, tolerance: float
+def _on_planes(
+    ref: Reference,
+    rows: Sequence[Row],
+    s: SteepestSlope,
+    sweep: str,
+    name: str,
+    tolerance: float,
 ) -> Figure:
     """The steepest slope as the thesis's protocol gives it: the last of the fixed
-    inclinations (``s.sweep``'s runs) managed with every one below it; its note says what
+    inclinations (``sweep``'s runs) managed with every one below it; its note says what
     the next one did. Not counted in the agreement: the board's row measures the figure."""
-    assert s.sweep is not None
     spec, rules = ref.steepest, ref.rules
-    judge = judge_of(s.sweep)
-    tested = sorted(
-        (r for r in rows if r.label == s.sweep and trochanter_of(r) == s.trochanter),
-        key=slope_of,
-    )
-    found = steepest(tested, s.sweep, s.trochanter, rules)
-    failed = next((r for r in tested if judge(r, rules) is not True), None)
+    tested, found, failed = _sweep(rows, sweep, s.trochanter, rules)
     if failed is not None:
-        why_not = _outcome_note(failed, judge, rules) or "not judged, a metric is missing."
+        why_not = (
+            _outcome_note(failed, judge_of(sweep), rules) or "not judged, a metric is missing."
+        )
         next_one = f"On {slope_of(failed):g}°: {why_not}"
     elif tested:
         next_one = f"Every slope tested passed: the limit lies above {slope_of(tested[-1]):g}°."
@@ -534,7 +536,7 @@ def _inclinations(
         source=spec.source,
         why=ref.explain(s.sweep_why),
         tolerance=tolerance,
-        note=_joined(spec.sweep_note.format(runs=s.sweep), next_one),
+        note=_joined(spec.sweep_note.format(runs=sweep), next_one),
     )
     return replace(figure, counted=False)
 
